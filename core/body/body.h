@@ -1,0 +1,73 @@
+// Rigid body state and settings (the "cold" data the user sees).
+// The solver copies what it needs into SolverBody (solver_body.h) each step.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+
+#include "core/math/math.h"
+
+namespace blockstep {
+
+// Index of a body in its World. kWorldBody stands for the fixed world frame
+// in joints attached to a single body.
+using BodyId = std::int32_t;
+inline constexpr BodyId kWorldBody = -1;
+
+enum class BodyType : std::uint8_t {
+  Dynamic,    // moved by forces and constraints
+  Kinematic,  // moved by its own velocity, infinite mass for the solver
+  Static,     // never moves
+};
+
+struct BodyDesc {
+  BodyType type = BodyType::Dynamic;
+  Vec3 position = Vec3::Zero();                // centre of mass, world, m
+  Quat orientation = Quat::Identity();         // body to world
+  Vec3 linearVelocity = Vec3::Zero();          // m/s
+  Vec3 angularVelocity = Vec3::Zero();         // world frame, rad/s
+  double mass = 1.0;                           // kg, > 0 for dynamic bodies
+  Mat3 inertia = Mat3::Identity();             // body frame, about the centre of mass, kg m^2
+  bool gravity = true;                         // world gravity applies
+  double linearDamping = 0.0;                  // 1/s: v *= 1 / (1 + h c)
+  double angularDamping = 0.0;                 // 1/s
+  double maxAngularSpeed = std::numeric_limits<double>::infinity();  // rad/s
+};
+
+struct Body {
+  BodyType type = BodyType::Dynamic;
+  Vec3 position = Vec3::Zero();
+  Quat orientation = Quat::Identity();
+  Vec3 linearVelocity = Vec3::Zero();
+  Vec3 angularVelocity = Vec3::Zero();
+  Vec3 force = Vec3::Zero();   // accumulated for the next step, cleared by it, N
+  Vec3 torque = Vec3::Zero();  // world frame, N m
+  double mass = 1.0;
+  double invMass = 1.0;
+  Mat3 inertiaBody = Mat3::Identity();
+  Mat3 invInertiaBody = Mat3::Identity();
+  bool gravity = true;
+  double linearDamping = 0.0;
+  double angularDamping = 0.0;
+  double maxAngularSpeed = std::numeric_limits<double>::infinity();
+  bool alive = true;  // false once destroyed; the slot is reused
+
+  bool isDynamic() const { return type == BodyType::Dynamic; }
+
+  // World inverse inertia R I0^-1 R^T (section 4.1: I = R I0 R^T).
+  Mat3 invInertiaWorld() const {
+    if (!isDynamic()) return Mat3::Zero();
+    const Mat3 R = orientation.toRotationMatrix();
+    return R * invInertiaBody * R.transpose();
+  }
+
+  Vec3 worldPoint(const Vec3& local) const { return position + orientation * local; }
+  Vec3 localPoint(const Vec3& world) const {
+    return orientation.conjugate() * (world - position);
+  }
+  Vec3 pointVelocity(const Vec3& world) const {
+    return linearVelocity + angularVelocity.cross(world - position);
+  }
+};
+
+}  // namespace blockstep

@@ -1,0 +1,20 @@
+// Ball and socket: the point part alone (3 rows, one 3x3 block).
+#include "core/constraints/joint_kinds.h"
+#include "core/constraints/parts/point.h"
+
+namespace blockstep {
+
+void validateJoint(const BallJointDesc& d) {
+  validateCommon(d.common, "ball");
+  requireFinite(d.anchor, "ball joint anchor");
+}
+
+JointFrames setupJoint(BallJointDesc& d, const Body& a, const Body& b) {
+  return framesAt(a, b, d.anchor, Quat::Identity());
+}
+
+void buildJointRows(const BallJointDesc& d, const JointPose& p, RowWriter& out) {
+  addPointRows(p, d.common.softness, 0, out);
+}
+
+}  // namespace blockstep

@@ -1,0 +1,97 @@
+// Validation and frame set-up shared by all joint kinds.
+#include <cmath>
+#include <string>
+
+#include "core/constraints/joint_kinds.h"
+#include "core/world/error.h"
+
+namespace blockstep {
+namespace {
+
+std::string str(const Vec3& v) {
+  return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " +
+         std::to_string(v.z()) + ")";
+}
+
+void validateSoftness(const Softness& s, const std::string& what) {
+  if (!s.valid()) {
+    if (s.mode == Softness::Mode::ErpCfm) {
+      throw Error(what + ": ERP must be in [0, 1] and CFM >= 0 and finite (got ERP " +
+                  std::to_string(s.erp) + ", CFM " + std::to_string(s.cfm) + ")");
+    }
+    if (s.mode == Softness::Mode::StepSpring) {
+      throw Error(what + ": step fraction must be > 0 and damping ratio >= 0 (got " +
+                  std::to_string(s.stepFraction) + ", " + std::to_string(s.dampingRatio) + ")");
+    }
+    throw Error(what + ": spring frequency must be > 0 and damping ratio >= 0 (got " +
+                std::to_string(s.hertz) + " Hz, " + std::to_string(s.dampingRatio) + ")");
+  }
+}
+
+}  // namespace
+
+void requireFinite(const Vec3& v, const char* what) {
+  if (!v.allFinite()) throw Error(std::string(what) + " is not finite: " + str(v));
+}
+
+Vec3 requireAxis(const Vec3& axis, const char* what) {
+  requireFinite(axis, what);
+  const double n = axis.norm();
+  if (n < 1e-9) throw Error(std::string(what) + " has zero length: " + str(axis));
+  return axis / n;
+}
+
+void validateCommon(const JointCommon& c, const char* kind) {
+  const std::string k = std::string(kind) + " joint";
+  if (c.bodyA == kWorldBody && c.bodyB == kWorldBody) {
+    throw Error(k + " attaches the world to itself: give at least one body");
+  }
+  if (c.bodyA == c.bodyB) {
+    throw Error(k + " attaches body " + std::to_string(c.bodyA) + " to itself");
+  }
+  validateSoftness(c.softness, k + " softness");
+  if (!(c.breakForce > 0.0) || !(c.breakTorque > 0.0) || std::isnan(c.breakForce) ||
+      std::isnan(c.breakTorque)) {
+    throw Error(k + ": break force and torque must be > 0 (use infinity for unbreakable)");
+  }
+}
+
+void validateLimit(const Limit& l, const char* what) {
+  if (!l.enabled) return;
+  if (!std::isfinite(l.lo) || !std::isfinite(l.hi) || l.lo > l.hi) {
+    throw Error(std::string(what) + " limit needs finite lo <= hi (got " + std::to_string(l.lo) +
+                ", " + std::to_string(l.hi) + ")");
+  }
+  validateSoftness(l.softness, std::string(what) + " limit softness");
+}
+
+void validateMotor(const Motor& m, const char* what) {
+  if (!std::isfinite(m.targetVelocity) || !std::isfinite(m.maxForce) || m.maxForce < 0.0) {
+    throw Error(std::string(what) + " motor needs a finite target velocity and max force >= 0");
+  }
+}
+
+JointFrames framesAt(const Body& a, const Body& b, const Vec3& anchor, const Quat& worldFrame) {
+  JointFrames f;
+  f.localAnchorA = a.localPoint(anchor);
+  f.localAnchorB = b.localPoint(anchor);
+  f.localFrameA = a.orientation.conjugate() * worldFrame;
+  f.localFrameB = b.orientation.conjugate() * worldFrame;
+  return f;
+}
+
+const char* jointKindName(const JointDesc& d) {
+  struct Names {
+    const char* operator()(const BallJointDesc&) const { return "ball"; }
+    const char* operator()(const HingeJointDesc&) const { return "hinge"; }
+    const char* operator()(const SliderJointDesc&) const { return "slider"; }
+    const char* operator()(const FixedJointDesc&) const { return "fixed"; }
+    const char* operator()(const UniversalJointDesc&) const { return "universal"; }
+    const char* operator()(const ConeTwistJointDesc&) const { return "cone-twist"; }
+    const char* operator()(const SixDofJointDesc&) const { return "6-DOF"; }
+    const char* operator()(const DistanceJointDesc&) const { return "distance"; }
+  };
+  return std::visit(Names{}, d);
+}
+
+}  // namespace blockstep

@@ -1,0 +1,136 @@
+// What a user says to create a joint. Anchors and axes are given in world
+// coordinates at creation, in the bodies' current poses (as in ODE); the
+// world turns them into frames fixed in each body. Limits, motors,
+// softness and break thresholds may be changed between steps through
+// World::jointDesc().
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <variant>
+
+#include "core/body/body.h"
+#include "core/constraints/softness.h"
+
+namespace blockstep {
+
+using JointId = std::int32_t;
+
+// A one-sided pair of stops. lo == hi locks the axis; lo > hi is invalid.
+struct Limit {
+  bool enabled = false;
+  double lo = 0.0;  // rad for angles, m for distances
+  double hi = 0.0;
+  Softness softness = Softness::erpCfm(0.2, 0.0);  // ODE's StopERP / StopCFM
+};
+
+// A velocity motor: drives the axis toward targetVelocity with at most
+// maxForce (N or N m). maxForce == 0 turns it off.
+struct Motor {
+  double targetVelocity = 0.0;
+  double maxForce = 0.0;
+  bool active() const { return maxForce > 0.0; }
+};
+
+// Settings every joint has.
+struct JointCommon {
+  BodyId bodyA = kWorldBody;
+  BodyId bodyB = kWorldBody;
+  Softness softness = Softness::erpCfm(0.2, 1e-5);  // of the equality rows
+  // The joint breaks (stops acting, and is reported) when the force or
+  // torque it transmitted over one step exceeds these.
+  double breakForce = std::numeric_limits<double>::infinity();   // N
+  double breakTorque = std::numeric_limits<double>::infinity();  // N m
+};
+
+// Point-to-point (ball and socket): 3 rows.
+struct BallJointDesc {
+  JointCommon common;
+  Vec3 anchor = Vec3::Zero();
+};
+
+// Ball + 2 rotational rows about the axis's perpendiculars; angle limit
+// and motor about the axis.
+struct HingeJointDesc {
+  JointCommon common;
+  Vec3 anchor = Vec3::Zero();
+  Vec3 axis = Vec3::UnitZ();
+  Limit limit;  // angle of B relative to A about the axis, 0 at creation
+  Motor motor;
+};
+
+// Translation along one axis only: 2 linear rows + 3 rotational rows;
+// limit and motor along the axis.
+struct SliderJointDesc {
+  JointCommon common;
+  Vec3 axis = Vec3::UnitZ();
+  Limit limit;  // displacement of B relative to A along the axis, 0 at creation
+  Motor motor;
+};
+
+// Holds the two bodies in their relative pose at creation: 6 rows, one block.
+struct FixedJointDesc {
+  JointCommon common;
+};
+
+// Ball + rotation kept about axis1 (fixed in A) and axis2 (fixed in B),
+// which start perpendicular; limits on both angles.
+struct UniversalJointDesc {
+  JointCommon common;
+  Vec3 anchor = Vec3::Zero();
+  Vec3 axis1 = Vec3::UnitX();
+  Vec3 axis2 = Vec3::UnitY();
+  Limit limit1, limit2;
+  Motor motor1, motor2;
+};
+
+// Ragdoll shoulder: ball + a cone limiting how far the twist axis swings
+// (half angle) + a twist limit about it.
+struct ConeTwistJointDesc {
+  JointCommon common;
+  Vec3 anchor = Vec3::Zero();
+  Vec3 twistAxis = Vec3::UnitX();
+  double swingLimit = kPi;  // rad, cone half angle; >= pi means no cone
+  Limit twistLimit;
+};
+
+// Each of 6 axes of a joint frame (x, y, z translation, then x, y, z
+// rotation) is free, locked or limited, and may carry a motor.
+struct SixDofJointDesc {
+  enum class Mode : std::uint8_t { Free, Locked, Limited };
+  struct Axis {
+    Mode mode = Mode::Locked;
+    double lo = 0.0, hi = 0.0;
+    Motor motor;
+  };
+  JointCommon common;
+  Vec3 anchor = Vec3::Zero();
+  Quat frame = Quat::Identity();  // world orientation of the joint frame at creation
+  Axis axes[6];
+  Softness limitSoftness = Softness::erpCfm(0.2, 0.0);
+};
+
+// Keeps the distance between two anchors within [minLength, maxLength]
+// (a rope: minLength = 0). With spring softness it is a damped spring.
+struct DistanceJointDesc {
+  JointCommon common;
+  Vec3 anchorA = Vec3::Zero();
+  Vec3 anchorB = Vec3::Zero();
+  double minLength = -1.0;  // < 0: the distance at creation
+  double maxLength = -1.0;
+};
+
+using JointDesc = std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc,
+                               UniversalJointDesc, ConeTwistJointDesc, SixDofJointDesc,
+                               DistanceJointDesc>;
+
+inline const JointCommon& common(const JointDesc& d) {
+  return std::visit([](const auto& j) -> const JointCommon& { return j.common; }, d);
+}
+inline JointCommon& common(JointDesc& d) {
+  return std::visit([](auto& j) -> JointCommon& { return j.common; }, d);
+}
+
+const char* jointKindName(const JointDesc& d);
+
+}  // namespace blockstep

@@ -1,0 +1,42 @@
+// Per-kind joint behaviour, one overload set per JointDesc alternative:
+//   validateJoint  checks the description (throws Error),
+//   setupJoint     fixes the joint's frames in both bodies at creation,
+//   buildJointRows writes the joint's rows for the current pose.
+// The solver dispatches to them once per joint per prepare (std::visit).
+#pragma once
+
+#include "core/body/body.h"
+#include "core/constraints/joint_desc.h"
+#include "core/constraints/parts/joint_pose.h"
+#include "core/constraints/parts/row_writer.h"
+
+namespace blockstep {
+
+#define BLOCKSTEP_JOINT_KIND(Desc)                                   \
+  void validateJoint(const Desc& d);                                 \
+  JointFrames setupJoint(Desc& d, const Body& a, const Body& b);     \
+  void buildJointRows(const Desc& d, const JointPose& p, RowWriter& out);
+
+BLOCKSTEP_JOINT_KIND(BallJointDesc)
+BLOCKSTEP_JOINT_KIND(HingeJointDesc)
+BLOCKSTEP_JOINT_KIND(SliderJointDesc)
+BLOCKSTEP_JOINT_KIND(FixedJointDesc)
+BLOCKSTEP_JOINT_KIND(UniversalJointDesc)
+BLOCKSTEP_JOINT_KIND(ConeTwistJointDesc)
+BLOCKSTEP_JOINT_KIND(SixDofJointDesc)
+BLOCKSTEP_JOINT_KIND(DistanceJointDesc)
+
+#undef BLOCKSTEP_JOINT_KIND
+
+// Checks shared by every kind.
+void validateCommon(const JointCommon& c, const char* kind);
+void validateLimit(const Limit& l, const char* what);
+void validateMotor(const Motor& m, const char* what);
+Vec3 requireAxis(const Vec3& axis, const char* what);  // returns it normalized
+void requireFinite(const Vec3& v, const char* what);
+
+// A joint frame whose x axis is `axis`, fixed in both bodies so the two
+// frames coincide now; anchors at the world point `anchor`.
+JointFrames framesAt(const Body& a, const Body& b, const Vec3& anchor, const Quat& worldFrame);
+
+}  // namespace blockstep

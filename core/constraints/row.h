@@ -1,0 +1,75 @@
+// One constraint row and one block of rows: the data the block
+// Sequential-Impulses iteration (section 4.3) works on.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+
+#include "core/constraints/softness.h"
+#include "core/math/math.h"
+
+namespace blockstep {
+
+inline constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// How a row's bias is formed in prepare().
+enum class RowBias : std::uint8_t {
+  Baumgarte,    // b = beta/h C (soft); equality rows and limits past their stop
+  Speculative,  // a one-sided row not yet touching: C > 0 may close within the step,
+                // b = C / h, never pulls (kept in the relax pass)
+  Velocity,     // a motor: b = -target velocity
+};
+
+// A row of J (12 columns: linear and angular for body A, then body B),
+// with what the iteration needs cached beside it.
+struct ConstraintRow {
+  Vec3 linA = Vec3::Zero(), angA = Vec3::Zero();
+  Vec3 linB = Vec3::Zero(), angB = Vec3::Zero();
+  Vec3 invIangA = Vec3::Zero(), invIangB = Vec3::Zero();  // M^-1 J^T, angular parts
+  double C = 0.0;          // position error (m or rad), written by the joint's parts
+  double target = 0.0;     // motor target velocity
+  double bias = 0.0;       // b in  J v + b + gamma P = 0
+  double biasRelax = 0.0;  // b kept in the bias-free relax pass (speculative rows, motors)
+  double gamma = 0.0;      // CFM / h
+  double effMass = 0.0;    // 1 / (K_ii + gamma): used when the row is solved alone
+  double lo = -kInf;       // bounds on the accumulated impulse, N s
+  double hi = kInf;
+  double impulse = 0.0;      // accumulated impulse of the current (sub)step
+  double stepImpulse = 0.0;  // summed over the sub-steps of one step
+  const Softness* softness = nullptr;  // prepare-time only
+  RowBias biasKind = RowBias::Baumgarte;
+  bool angular = false;    // torque-like row (for feedback and breaking)
+  std::uint8_t slot = 0;  // the joint's stable name for this row: warm starting follows it
+};
+
+// One joint's rows. Rows [first, first + bounded) are one-sided or
+// force-limited rows (motors, limits) solved one at a time with the
+// accumulated impulse clamped; rows [first + bounded, first + bounded +
+// equality) are the joint's equality rows, solved together as one block
+// with K = J M^-1 J^T + gamma factored once by LDL^T.
+//
+// Why bounded rows are separate 1x1 sub-blocks instead of inside the LDL^T
+// block: clamping one component of a block solution and keeping the others
+// changes what the others should have been, and re-solving with that row
+// fixed is a small active-set method whose active set can flip between
+// iterations, which is the jitter section 4.3 reports. Solving the bounded
+// rows first and the rigid block last (most important last, as Jolt and
+// Box2D order motor, limit, point) keeps every sub-solve exact and every
+// clamp on the accumulated impulse, so the iteration is a plain block
+// Gauss-Seidel on a convex problem and converges without flipping.
+struct ConstraintBlock {
+  std::int32_t bodyA = 0;  // solver body indices (the static dummy for the world)
+  std::int32_t bodyB = 0;
+  std::int32_t firstRow = 0;
+  std::uint8_t bounded = 0;
+  std::uint8_t equality = 0;
+  std::int32_t joint = -1;
+  std::int32_t island = -1;
+  // LDL^T of the equality block: unit lower L below the diagonal,
+  // 1/D on the diagonal (0 where the pivot vanished: a redundant row).
+  Eigen::Matrix<double, 6, 6> ldl = Eigen::Matrix<double, 6, 6>::Zero();
+
+  int rowCount() const { return bounded + equality; }
+};
+
+}  // namespace blockstep

@@ -1,0 +1,94 @@
+// How soft a constraint is, in the two vocabularies users bring:
+// ODE's (ERP, CFM) and a spring's (frequency, damping ratio).
+//
+// Section 4.1-4.2 writes a row as  J v + b + c lambda = 0  with Baumgarte
+// bias b = (beta / h) C. Solving for the impulse P = h lambda gives
+//   (J M^-1 J^T + c / h) P = -(J v + (beta / h) C).
+// We store gamma = c / h (velocity per unit impulse) beside the bias rate.
+//
+// Spring form (the paper's reference [3], Catto's soft constraints): a
+// spring k = m w^2 and damper d = 2 m zeta w on a row of effective mass
+// m = 1 / K_ii, integrated implicitly over h, is the same row with
+//   beta  = h k / (h k + d)            = h w / (h w + 2 zeta)
+//   c     = 1 / (h k + d)   so  gamma  = K_ii / (h w (h w + 2 zeta)).
+// (From m dv = -h (k C' + d v') with C' = C + h v': rearranging into
+// J v' + beta/h C + c lambda = 0.) The mass cancels in beta, so only gamma
+// needs K_ii, which prepare() knows once the Jacobian is built.
+//
+// Step-scaled spring: the frequency is a fixed fraction of the step rate,
+// hertz = stepFraction / h, so beta and gamma / K_ii are the same at every
+// step size. With sub-steps this keeps the joint as stiff as the sub-step
+// rate allows (../shared/SCENES.md: 0.25-0.4 / h_sub, damping ratio about
+// 2); a fixed frequency plateaus however many sub-steps run. Unlike plain
+// ERP it always carries damping (gamma > 0), which is what keeps warm-
+// started, not fully converged sweeps from feeding Baumgarte's correction
+// back into growing oscillation on high mass ratios.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/math/math.h"
+
+namespace blockstep {
+
+struct Softness {
+  enum class Mode : unsigned char { ErpCfm, Spring, StepSpring };
+  Mode mode = Mode::ErpCfm;
+  double erp = 0.2;    // Baumgarte beta, fraction of the error removed per step
+  double cfm = 1e-5;   // ODE's constraint force mixing: row velocity per unit force
+  double hertz = 0.0;  // spring frequency, Hz (Spring mode)
+  double dampingRatio = 1.0;
+  double stepFraction = 0.25;  // StepSpring: hertz * h
+
+  static Softness erpCfm(double erp, double cfm) {
+    Softness s;
+    s.mode = Mode::ErpCfm;
+    s.erp = erp;
+    s.cfm = cfm;
+    return s;
+  }
+  static Softness spring(double hertz, double dampingRatio) {
+    Softness s;
+    s.mode = Mode::Spring;
+    s.hertz = hertz;
+    s.dampingRatio = dampingRatio;
+    return s;
+  }
+  static Softness stepSpring(double stepFraction, double dampingRatio) {
+    Softness s;
+    s.mode = Mode::StepSpring;
+    s.stepFraction = stepFraction;
+    s.dampingRatio = dampingRatio;
+    return s;
+  }
+  static Softness rigid() { return erpCfm(0.2, 0.0); }
+
+  bool valid() const {
+    if (mode == Mode::ErpCfm) return erp >= 0.0 && erp <= 1.0 && cfm >= 0.0 && std::isfinite(cfm);
+    if (mode == Mode::StepSpring) {
+      return stepFraction > 0.0 && std::isfinite(stepFraction) && dampingRatio >= 0.0 &&
+             std::isfinite(dampingRatio);
+    }
+    return hertz > 0.0 && std::isfinite(hertz) && dampingRatio >= 0.0 && std::isfinite(dampingRatio);
+  }
+
+  // Bias rate beta / h (1/s) for step h.
+  double biasRate(double h) const {
+    if (mode == Mode::ErpCfm) return erp / h;
+    const double hw = omegaH(h);
+    return hw / (hw + 2.0 * dampingRatio) / h;
+  }
+  // gamma = c / h for a row whose K diagonal is kDiag.
+  double gamma(double h, double kDiag) const {
+    if (mode == Mode::ErpCfm) return cfm / h;
+    const double hw = omegaH(h);
+    return kDiag / (hw * (hw + 2.0 * dampingRatio));
+  }
+  // h times the angular frequency.
+  double omegaH(double h) const {
+    return 2.0 * kPi * (mode == Mode::StepSpring ? stepFraction : hertz * h);
+  }
+};
+
+}  // namespace blockstep

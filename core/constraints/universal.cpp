@@ -1,0 +1,52 @@
+// Universal (Cardan): point part + one row keeping axis1 (fixed in A)
+// perpendicular to axis2 (fixed in B), one 4x4 block. The two angles are
+// read from the relative rotation r = FA* FB written as
+// r = Rx(t1) Ry(t2): w = c1 c2, x = s1 c2, y = c1 s2 (half angles), so
+// t1 = 2 atan2(x, w), t2 = 2 atan2(y, w). Limits and motors on both.
+#include <cmath>
+
+#include "core/constraints/joint_kinds.h"
+#include "core/constraints/parts/coordinate.h"
+#include "core/constraints/parts/point.h"
+#include "core/constraints/parts/rotation.h"
+#include "core/world/error.h"
+
+namespace blockstep {
+
+void validateJoint(const UniversalJointDesc& d) {
+  validateCommon(d.common, "universal");
+  requireFinite(d.anchor, "universal joint anchor");
+  const Vec3 a1 = requireAxis(d.axis1, "universal joint axis1");
+  const Vec3 a2 = requireAxis(d.axis2, "universal joint axis2");
+  if (a1.cross(a2).norm() < 1e-6) throw Error("universal joint axes are parallel");
+  validateLimit(d.limit1, "universal joint axis1");
+  validateLimit(d.limit2, "universal joint axis2");
+  validateMotor(d.motor1, "universal joint axis1");
+  validateMotor(d.motor2, "universal joint axis2");
+}
+
+JointFrames setupJoint(UniversalJointDesc& d, const Body& a, const Body& b) {
+  const Vec3 x = d.axis1.normalized();
+  const Vec3 y = (d.axis2 - d.axis2.dot(x) * x).normalized();
+  d.axis1 = x;
+  d.axis2 = y;
+  Mat3 R;
+  R << x, y, x.cross(y);
+  return framesAt(a, b, d.anchor, Quat(R));
+}
+
+void buildJointRows(const UniversalJointDesc& d, const JointPose& p, RowWriter& out) {
+  addPointRows(p, d.common.softness, 0, out);
+  ConstraintRow& perp = out.equality(3);
+  perpendicularRow(p.axisA(0), p.axisB(1), perp);
+  perp.softness = &d.common.softness;
+
+  const RelativeRotation rel(p);
+  ConstraintRow rate;
+  angularAxisRow(p.axisA(0), 0.0, rate);
+  addCoordinateRows(rate, rel.angle(0), d.limit1, d.motor1, 6, out);
+  angularAxisRow(p.axisB(1), 0.0, rate);
+  addCoordinateRows(rate, rel.angle(1), d.limit2, d.motor2, 9, out);
+}
+
+}  // namespace blockstep

@@ -1,0 +1,59 @@
+// Fixed-size math types and the few helpers the solver needs.
+// Double precision throughout: ODE's Debian build is double, and the
+// adapter must not lose precision on the way in or out.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <cmath>
+
+namespace blockstep {
+
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+using Quat = Eigen::Quaterniond;
+
+inline constexpr double kPi = 3.14159265358979323846;
+
+// [v]x such that skew(v) * w == v.cross(w).
+inline Mat3 skew(const Vec3& v) {
+  Mat3 m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+inline bool isFinite(const Vec3& v) { return v.allFinite(); }
+inline bool isFinite(const Quat& q) { return q.coeffs().allFinite(); }
+inline bool isFinite(const Mat3& m) { return m.allFinite(); }
+
+// Quaternion time derivative for a world-frame angular velocity:
+// dq/dt = 1/2 (0, w) q. Integrating it with one Euler step and renormalizing
+// is the semi-implicit update of section 3 applied to rotations.
+inline Quat integrateRotation(const Quat& q, const Vec3& w, double h) {
+  const Quat wq(0.0, w.x(), w.y(), w.z());
+  Quat dq = wq * q;
+  Quat out(q.w() + 0.5 * h * dq.w(), q.x() + 0.5 * h * dq.x(), q.y() + 0.5 * h * dq.y(),
+           q.z() + 0.5 * h * dq.z());
+  out.normalize();
+  return out;
+}
+
+// Two unit vectors perpendicular to n and to each other (n must be unit).
+inline void perpendicularBasis(const Vec3& n, Vec3& t1, Vec3& t2) {
+  // Pick the axis least aligned with n to stay well conditioned.
+  if (std::abs(n.x()) >= 0.57735) {
+    t1 = Vec3(n.y(), -n.x(), 0.0).normalized();
+  } else {
+    t1 = Vec3(0.0, n.z(), -n.y()).normalized();
+  }
+  t2 = n.cross(t1);
+}
+
+// A rotation taking the x axis to `axis` (unit): a joint frame whose first
+// axis is the joint axis.
+inline Quat frameFromAxis(const Vec3& axis) {
+  return Quat::FromTwoVectors(Vec3::UnitX(), axis);
+}
+
+}  // namespace blockstep

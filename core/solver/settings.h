@@ -1,0 +1,102 @@
+// Solver settings and per-step statistics.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <optional>
+
+#include "core/constraints/joint_desc.h"
+#include "core/constraints/softness.h"
+
+namespace blockstep {
+
+enum class Integrator : std::uint8_t {
+  SemiImplicitEuler,  // v += h a; x += h v_new (section 3: symplectic, the default)
+  ExplicitEuler,      // x += h v_old; v += h a (kept for studies: gains energy)
+};
+
+enum class BlockMode : std::uint8_t {
+  Block,     // each joint's equality rows as one LDL^T block (section 4.3)
+  RowByRow,  // every row its own 1x1 block, for comparison studies
+};
+
+struct SolverSettings {
+  // Velocity sweeps per (sub-)step: the upper bound when a tolerance or a
+  // time budget is set too.
+  int iterations = 10;
+  // Stop a (sub-)step's sweeps once every island's largest row residual
+  // |J v + b + gamma P| (m/s or rad/s) is below this. 0: off.
+  double tolerance = 0.0;
+  // Wall-time budget for the sweeps of one whole step, seconds. 0: off.
+  double timeBudget = 0.0;
+  // Sub-steps per step: each integrates velocities, prepares and factors
+  // the blocks, warm starts, sweeps, integrates positions and relaxes.
+  int substeps = 1;
+  // Bias-free sweeps after each sub-step's position update: they remove
+  // the velocity the position correction added, so it does not turn into
+  // motion (Box2D v3's relax stage, PhysX TGS). 0: off (the paper's solver).
+  int relaxIterations = 0;
+  // Start each solve from the last one's impulses, scaled by the step
+  // ratio. Off in the paper preset: with plain Baumgarte (ERP) rows and
+  // sweeps that have not converged (high mass ratios, stiff lattices) the
+  // carried impulse and the position correction feed each other and grow
+  // (ODE's quickstep compiles its warm starting out for the same reason).
+  // Safe with damped rows (rigidJointSoftness below), as sub-stepping uses.
+  bool warmStarting = false;
+  // When set, rows whose joint gives plain ERP/CFM softness (equality rows
+  // and limits) use this instead; joints given a physical spring keep it.
+  // Unset: every joint's own ERP/CFM, as in ODE.
+  std::optional<Softness> rigidJointSoftness;
+  BlockMode blockMode = BlockMode::Block;
+  Integrator integrator = Integrator::SemiImplicitEuler;
+  // Gyroscopic term w x (I w), integrated implicitly (off by default, as
+  // section 4.1 suggests).
+  bool gyroscopic = false;
+  // Record the residual after every sweep (costs one extra pass over the
+  // rows per sweep; on automatically while a tolerance is set).
+  bool recordResiduals = false;
+
+  // The paper's solver: one step, k block iterations, each joint's
+  // Baumgarte ERP and CFM, no relax, no warm starting (the default).
+  static SolverSettings paper(int iterations) {
+    SolverSettings s;
+    s.iterations = iterations;
+    return s;
+  }
+  // Sub-stepping: n sub-steps of one block sweep and one relax sweep each,
+  // warm started, rigid rows as a spring at 0.4 of the sub-step rate with
+  // damping ratio 2. Stiff chains and cloth need this
+  // (../shared/SCENES.md: one step per frame tears them whatever the
+  // iteration count; springs stiffer than about 0.5 / h_sub jitter).
+  static SolverSettings subStepped(int substeps) {
+    SolverSettings s;
+    s.substeps = substeps;
+    s.iterations = 1;
+    s.relaxIterations = 1;
+    s.warmStarting = true;
+    s.rigidJointSoftness = Softness::stepSpring(0.4, 2.0);
+    return s;
+  }
+};
+
+struct ResidualSample {
+  std::int32_t substep = 0;
+  std::int32_t iteration = 0;  // 1-based sweep within the sub-step
+  double max = 0.0;            // largest |residual| over all rows
+  double rms = 0.0;
+};
+
+struct StepStats {
+  int substeps = 0;
+  int iterations = 0;  // velocity sweeps run, summed over sub-steps (relax excluded)
+  int islands = 0;
+  int blocks = 0;
+  int rows = 0;
+  double solveSeconds = 0.0;  // prepare + warm start + sweeps + relax
+  double stepSeconds = 0.0;   // the whole step
+  std::vector<ResidualSample> residuals;  // when recorded
+  std::vector<JointId> brokenJoints;      // joints that broke in this step
+};
+
+}  // namespace blockstep

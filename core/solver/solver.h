@@ -1,0 +1,85 @@
+// The block Sequential-Impulses step (section 4.3), as a list of stages.
+// The World owns bodies and joints; the Solver owns only per-step
+// workspace, sized on the first step and reused (no allocation per step
+// once a scene has warmed up).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/body/body.h"
+#include "core/constraints/joint.h"
+#include "core/constraints/parts/row_writer.h"
+#include "core/constraints/row.h"
+#include "core/solver/settings.h"
+#include "core/solver/solver_body.h"
+
+namespace blockstep {
+
+struct StepInput {
+  std::vector<Body>& bodies;
+  std::vector<Joint>& joints;
+  const Body& worldBody;  // the static frame behind kWorldBody
+  Vec3 gravity;
+  double h;  // the whole step, s
+};
+
+class Solver {
+ public:
+  // The stages of one step, in order. Each sub-step runs
+  // IntegrateVelocities .. StoreImpulses; BuildIslands runs once per step
+  // and Finish after the last sub-step.
+  enum class Stage {
+    BuildIslands,         // union-find over enabled joints between dynamic bodies
+    IntegrateVelocities,  // forces, gravity, damping, gyroscopic term
+    Prepare,              // rows, bias, CFM, K and its LDL^T per block
+    WarmStart,            // apply last solve's impulses, scaled to the step size
+    Solve,                // block Gauss-Seidel sweeps until a stop criterion
+    IntegratePositions,   // x += h v, q += h/2 (0, w) q, renormalize
+    Relax,                // bias-free sweeps
+    StoreImpulses,        // keep impulses for warm starting and feedback
+    Finish,               // breakable joints, clear forces, statistics
+  };
+
+  void step(const StepInput& in, const SolverSettings& settings, StepStats& stats);
+
+  // Feedback and errors read the rows of the last step.
+  JointFeedback feedback(const Joint& joint, double h) const;
+
+ private:
+  void buildIslands(const StepInput& in);
+  void integrateVelocities(const StepInput& in, const SolverSettings& s, double h);
+  void prepare(const StepInput& in, const SolverSettings& s, double h);
+  void warmStart();
+  int solve(const SolverSettings& s, int substep, double deadline, StepStats& stats);
+  void integratePositions(const StepInput& in, const SolverSettings& s, double h);
+  void relax(const SolverSettings& s);
+  void storeImpulses(const StepInput& in, double h);
+  void finish(const StepInput& in, StepStats& stats);
+
+  void sweep(int island, bool useBias, BlockMode mode);
+  // Residual of one island after a sweep: max and sum of squares, rows counted.
+  void islandResidual(int island, double& max, double& sumSq, int& count) const;
+  std::int32_t solverIndex(BodyId id) const;
+
+  std::vector<SolverBody> bodies_;  // one per world body, then the static dummy
+  std::vector<Vec3> startV_, startW_;  // velocities before the step (explicit Euler)
+  std::vector<ConstraintBlock> blocks_;
+  std::vector<ConstraintRow> rows_;
+  std::vector<std::int32_t> jointOfBlock_;
+  // Islands: blocks are ordered by island, island i owning blocks
+  // [islandStart_[i], islandStart_[i + 1]).
+  std::vector<std::int32_t> parent_;
+  std::vector<std::int32_t> islandOfRoot_;
+  std::vector<std::int32_t> jointIsland_;
+  std::vector<std::int32_t> fill_;
+  std::vector<std::int32_t> islandStart_;
+  std::vector<std::uint8_t> islandActive_;
+  std::vector<std::int32_t> activeJoints_;
+  RowWriter writer_;
+  int islandCount_ = 0;
+  int rowCount_ = 0;
+  std::int32_t dummy_ = 0;
+};
+
+}  // namespace blockstep

@@ -1,0 +1,390 @@
+#include "core/world/world.h"
+
+#include <cmath>
+#include <string>
+#include <variant>
+
+#include <Eigen/Eigenvalues>
+
+#include "core/constraints/joint_kinds.h"
+
+namespace blockstep {
+namespace {
+
+std::string bodyName(BodyId id) { return "body " + std::to_string(id); }
+std::string jointName(JointId id) { return "joint " + std::to_string(id); }
+
+void requireFiniteVec(const Vec3& v, const std::string& what) {
+  if (!v.allFinite()) throw Error(what + " is not finite");
+}
+
+void validateInertia(double mass, const Mat3& inertia, const std::string& who) {
+  if (!(mass > 0.0) || !std::isfinite(mass)) {
+    throw Error(who + ": mass must be positive and finite, got " + std::to_string(mass));
+  }
+  if (!inertia.allFinite()) throw Error(who + ": inertia is not finite");
+  if ((inertia - inertia.transpose()).cwiseAbs().maxCoeff() > 1e-9 * inertia.cwiseAbs().maxCoeff()) {
+    throw Error(who + ": inertia is not symmetric");
+  }
+  // Positive definite, and a physical body: each principal moment is at
+  // most the sum of the other two (triangle inequality).
+  Eigen::SelfAdjointEigenSolver<Mat3> eig(inertia);
+  const Vec3 m = eig.eigenvalues();
+  if (!(m.minCoeff() > 0.0)) {
+    throw Error(who + ": inertia is not positive definite (smallest principal moment " +
+                std::to_string(m.minCoeff()) + ")");
+  }
+  const double slack = 1e-6 * m.maxCoeff();
+  if (m[2] > m[0] + m[1] + slack) {
+    throw Error(who + ": inertia violates the triangle inequality (no rigid body has it)");
+  }
+}
+
+}  // namespace
+
+World::World() {
+  worldBody_.type = BodyType::Static;
+  worldBody_.invMass = 0.0;
+  worldBody_.invInertiaBody = Mat3::Zero();
+}
+
+// ---------------------------------------------------------------- bodies
+
+BodyId World::createBody(const BodyDesc& d) {
+  const std::string who = "new body";
+  requireFiniteVec(d.position, who + " position");
+  requireFiniteVec(d.linearVelocity, who + " linear velocity");
+  requireFiniteVec(d.angularVelocity, who + " angular velocity");
+  if (!isFinite(d.orientation) || d.orientation.norm() < 1e-9) {
+    throw Error(who + ": orientation must be a finite, non-zero quaternion");
+  }
+  if (d.type == BodyType::Dynamic) validateInertia(d.mass, d.inertia, who);
+  if (!(d.linearDamping >= 0.0) || !(d.angularDamping >= 0.0) ||
+      !std::isfinite(d.linearDamping) || !std::isfinite(d.angularDamping)) {
+    throw Error(who + ": damping must be >= 0 and finite");
+  }
+  if (!(d.maxAngularSpeed > 0.0)) throw Error(who + ": max angular speed must be > 0");
+
+  Body b;
+  b.type = d.type;
+  b.position = d.position;
+  b.orientation = d.orientation.normalized();
+  b.linearVelocity = d.type == BodyType::Static ? Vec3::Zero() : d.linearVelocity;
+  b.angularVelocity = d.type == BodyType::Static ? Vec3::Zero() : d.angularVelocity;
+  b.gravity = d.gravity;
+  b.linearDamping = d.linearDamping;
+  b.angularDamping = d.angularDamping;
+  b.maxAngularSpeed = d.maxAngularSpeed;
+  if (d.type == BodyType::Dynamic) {
+    b.mass = d.mass;
+    b.invMass = 1.0 / d.mass;
+    b.inertiaBody = d.inertia;
+    b.invInertiaBody = d.inertia.inverse();
+  } else {
+    b.mass = 0.0;
+    b.invMass = 0.0;
+    b.inertiaBody = Mat3::Zero();
+    b.invInertiaBody = Mat3::Zero();
+  }
+  ++liveBodies_;
+  if (!freeBodies_.empty()) {
+    const BodyId id = freeBodies_.back();
+    freeBodies_.pop_back();
+    bodies_[id] = b;
+    return id;
+  }
+  bodies_.push_back(b);
+  return static_cast<BodyId>(bodies_.size() - 1);
+}
+
+Body& World::mutableBody(BodyId id) {
+  if (id < 0 || id >= static_cast<BodyId>(bodies_.size()) || !bodies_[id].alive) {
+    throw Error("no " + bodyName(id) + " in this world");
+  }
+  return bodies_[id];
+}
+
+const Body& World::body(BodyId id) const { return const_cast<World*>(this)->mutableBody(id); }
+
+const Body& World::endpoint(BodyId id) const { return id == kWorldBody ? worldBody_ : body(id); }
+
+int World::bodyCount() const { return liveBodies_; }
+
+void World::destroyBody(BodyId id) {
+  mutableBody(id);
+  for (JointId j = 0; j < static_cast<JointId>(joints_.size()); ++j) {
+    if (!joints_[j].alive) continue;
+    const JointCommon& c = common(joints_[j].desc);
+    if (c.bodyA == id || c.bodyB == id) destroyJoint(j);
+  }
+  bodies_[id].alive = false;
+  freeBodies_.push_back(id);
+  --liveBodies_;
+}
+
+void World::setPosition(BodyId id, const Vec3& p) {
+  requireFiniteVec(p, bodyName(id) + " position");
+  mutableBody(id).position = p;
+}
+
+void World::setOrientation(BodyId id, const Quat& q) {
+  if (!isFinite(q) || q.norm() < 1e-9) {
+    throw Error(bodyName(id) + " orientation must be a finite, non-zero quaternion");
+  }
+  mutableBody(id).orientation = q.normalized();
+}
+
+void World::setLinearVelocity(BodyId id, const Vec3& v) {
+  requireFiniteVec(v, bodyName(id) + " linear velocity");
+  Body& b = mutableBody(id);
+  if (b.type != BodyType::Static) b.linearVelocity = v;
+}
+
+void World::setAngularVelocity(BodyId id, const Vec3& w) {
+  requireFiniteVec(w, bodyName(id) + " angular velocity");
+  Body& b = mutableBody(id);
+  if (b.type != BodyType::Static) b.angularVelocity = w;
+}
+
+void World::setMass(BodyId id, double mass, const Mat3& inertia) {
+  Body& b = mutableBody(id);
+  validateInertia(mass, inertia, bodyName(id));
+  b.mass = mass;
+  b.inertiaBody = inertia;
+  if (b.isDynamic()) {
+    b.invMass = 1.0 / mass;
+    b.invInertiaBody = inertia.inverse();
+  }
+}
+
+void World::setType(BodyId id, BodyType type) {
+  Body& b = mutableBody(id);
+  if (type == BodyType::Dynamic && !(b.mass > 0.0)) {
+    throw Error(bodyName(id) + " has no mass: call setMass before making it dynamic");
+  }
+  b.type = type;
+  if (type == BodyType::Dynamic) {
+    b.invMass = 1.0 / b.mass;
+    b.invInertiaBody = b.inertiaBody.inverse();
+  } else {
+    b.invMass = 0.0;
+    b.invInertiaBody = Mat3::Zero();
+    if (type == BodyType::Static) {
+      b.linearVelocity.setZero();
+      b.angularVelocity.setZero();
+    }
+  }
+}
+
+void World::setGravityEnabled(BodyId id, bool enabled) { mutableBody(id).gravity = enabled; }
+
+void World::setDamping(BodyId id, double linear, double angular) {
+  if (!(linear >= 0.0) || !(angular >= 0.0) || !std::isfinite(linear) || !std::isfinite(angular)) {
+    throw Error(bodyName(id) + " damping must be >= 0 and finite");
+  }
+  Body& b = mutableBody(id);
+  b.linearDamping = linear;
+  b.angularDamping = angular;
+}
+
+void World::setMaxAngularSpeed(BodyId id, double maxSpeed) {
+  if (!(maxSpeed > 0.0)) throw Error(bodyName(id) + " max angular speed must be > 0");
+  mutableBody(id).maxAngularSpeed = maxSpeed;
+}
+
+void World::addForce(BodyId id, const Vec3& f) {
+  requireFiniteVec(f, bodyName(id) + " force");
+  mutableBody(id).force += f;
+}
+
+void World::addTorque(BodyId id, const Vec3& t) {
+  requireFiniteVec(t, bodyName(id) + " torque");
+  mutableBody(id).torque += t;
+}
+
+void World::addForceAtPoint(BodyId id, const Vec3& f, const Vec3& p) {
+  requireFiniteVec(f, bodyName(id) + " force");
+  requireFiniteVec(p, bodyName(id) + " force point");
+  Body& b = mutableBody(id);
+  b.force += f;
+  b.torque += (p - b.position).cross(f);
+}
+
+// ---------------------------------------------------------------- joints
+
+JointId World::createJoint(const JointDesc& desc) {
+  JointDesc d = desc;
+  std::visit([](const auto& j) { validateJoint(j); }, d);
+  const JointCommon& c = common(d);
+  const Body& a = endpoint(c.bodyA);
+  const Body& b = endpoint(c.bodyB);
+  Joint joint;
+  joint.frames = std::visit([&](auto& j) { return setupJoint(j, a, b); }, d);
+  joint.desc = d;
+  ++liveJoints_;
+  if (!freeJoints_.empty()) {
+    const JointId id = freeJoints_.back();
+    freeJoints_.pop_back();
+    joints_[id] = joint;
+    return id;
+  }
+  joints_.push_back(joint);
+  return static_cast<JointId>(joints_.size() - 1);
+}
+
+Joint& World::mutableJoint(JointId id) {
+  if (id < 0 || id >= static_cast<JointId>(joints_.size()) || !joints_[id].alive) {
+    throw Error("no " + jointName(id) + " in this world");
+  }
+  return joints_[id];
+}
+
+const Joint& World::liveJoint(JointId id) const {
+  return const_cast<World*>(this)->mutableJoint(id);
+}
+
+void World::destroyJoint(JointId id) {
+  Joint& j = mutableJoint(id);
+  j.alive = false;
+  j.block = -1;
+  freeJoints_.push_back(id);
+  --liveJoints_;
+}
+
+const JointDesc& World::joint(JointId id) const { return liveJoint(id).desc; }
+
+void World::updateJoint(JointId id, const JointDesc& desc) {
+  Joint& j = mutableJoint(id);
+  if (desc.index() != j.desc.index()) {
+    throw Error(jointName(id) + " is a " + jointKindName(j.desc) + " joint; cannot update it as a " +
+                jointKindName(desc) + " joint");
+  }
+  const JointCommon &now = common(j.desc), &next = common(desc);
+  if (now.bodyA != next.bodyA || now.bodyB != next.bodyB) {
+    throw Error(jointName(id) + ": its bodies cannot change (destroy it and create another)");
+  }
+  std::visit([](const auto& d) { validateJoint(d); }, desc);
+  j.desc = desc;
+}
+
+void World::setJointEnabled(JointId id, bool enabled) { mutableJoint(id).enabled = enabled; }
+
+bool World::jointBroken(JointId id) const { return liveJoint(id).broken; }
+
+void World::repairJoint(JointId id) { mutableJoint(id).broken = false; }
+
+int World::jointCount() const { return liveJoints_; }
+
+JointFeedback World::jointFeedback(JointId id) const {
+  const Joint& j = liveJoint(id);
+  if (lastStep_ <= 0.0) return JointFeedback{};
+  return solver_.feedback(j, lastStep_);
+}
+
+JointError World::jointError(JointId id) const {
+  const Joint& j = liveJoint(id);
+  const JointCommon& c = common(j.desc);
+  const Body& a = endpoint(c.bodyA);
+  const Body& b = endpoint(c.bodyB);
+  const JointPose pose =
+      JointPose::make(a.position, a.orientation, b.position, b.orientation, j.frames);
+  RowWriter out;
+  std::visit([&](const auto& d) { buildJointRows(d, pose, out); }, j.desc);
+  double linSq = 0.0, angSq = 0.0, linLimit = 0.0, angLimit = 0.0;
+  for (int i = 0; i < out.equalityCount(); ++i) {
+    const ConstraintRow& r = out.equalityRow(i);
+    (r.angular ? angSq : linSq) += r.C * r.C;
+  }
+  for (int i = 0; i < out.boundedCount(); ++i) {
+    const ConstraintRow& r = out.boundedRow(i);
+    if (r.biasKind != RowBias::Speculative || r.C >= 0.0) continue;
+    double& worst = r.angular ? angLimit : linLimit;
+    worst = std::max(worst, -r.C);
+  }
+  return JointError{std::max(std::sqrt(linSq), linLimit), std::max(std::sqrt(angSq), angLimit)};
+}
+
+// ---------------------------------------------------------------- settings
+
+void World::setGravity(const Vec3& g) {
+  requireFiniteVec(g, "gravity");
+  gravity_ = g;
+}
+
+void World::validateSettings(const SolverSettings& s) const {
+  if (s.iterations < 1) throw Error("solver iterations must be >= 1");
+  if (s.substeps < 1 || s.substeps > 1000) throw Error("sub-steps must be in [1, 1000]");
+  if (s.relaxIterations < 0) throw Error("relax iterations must be >= 0");
+  if (s.rigidJointSoftness && !s.rigidJointSoftness->valid()) {
+    throw Error("rigid joint softness is invalid (ERP in [0, 1], CFM >= 0, frequencies > 0)");
+  }
+  if (!(s.tolerance >= 0.0) || !std::isfinite(s.tolerance)) {
+    throw Error("solver tolerance must be >= 0 and finite");
+  }
+  if (!(s.timeBudget >= 0.0) || !std::isfinite(s.timeBudget)) {
+    throw Error("solver time budget must be >= 0 and finite");
+  }
+}
+
+void World::setSettings(const SolverSettings& s) {
+  validateSettings(s);
+  settings_ = s;
+}
+
+// ---------------------------------------------------------------- step
+
+void World::checkStateBeforeStep(double h) const {
+  if (!std::isfinite(h) || !(h > 0.0) || h > kMaxStep) {
+    throw Error("step size must be in (0, " + std::to_string(kMaxStep) + "] s, got " +
+                std::to_string(h));
+  }
+  validateSettings(settings_);
+  for (BodyId i = 0; i < static_cast<BodyId>(bodies_.size()); ++i) {
+    const Body& b = bodies_[i];
+    if (!b.alive) continue;
+    if (!b.position.allFinite() || !isFinite(b.orientation) || !b.linearVelocity.allFinite() ||
+        !b.angularVelocity.allFinite()) {
+      throw Error(bodyName(i) + " has a non-finite position, orientation or velocity");
+    }
+    if (!b.force.allFinite() || !b.torque.allFinite()) {
+      throw Error(bodyName(i) + " has a non-finite force or torque");
+    }
+  }
+}
+
+void World::step(double h) {
+  checkStateBeforeStep(h);
+  saved_.resize(bodies_.size());
+  for (std::size_t i = 0; i < bodies_.size(); ++i) {
+    const Body& b = bodies_[i];
+    saved_[i] = Saved{b.position, b.linearVelocity, b.angularVelocity, b.orientation};
+  }
+  // Sized once; a later step with the same settings does not allocate.
+  stats_.residuals.reserve(static_cast<std::size_t>(settings_.substeps) * settings_.iterations);
+  stats_.brokenJoints.reserve(joints_.size());
+
+  solver_.step(StepInput{bodies_, joints_, worldBody_, gravity_, h}, settings_, stats_);
+  lastStep_ = h;
+
+  for (BodyId i = 0; i < static_cast<BodyId>(bodies_.size()); ++i) {
+    const Body& b = bodies_[i];
+    if (!b.alive) continue;
+    if (b.position.allFinite() && isFinite(b.orientation) && b.linearVelocity.allFinite() &&
+        b.angularVelocity.allFinite()) {
+      continue;
+    }
+    for (std::size_t k = 0; k < bodies_.size(); ++k) {
+      bodies_[k].position = saved_[k].x;
+      bodies_[k].orientation = saved_[k].q;
+      bodies_[k].linearVelocity = saved_[k].v;
+      bodies_[k].angularVelocity = saved_[k].w;
+    }
+    for (Joint& j : joints_) j.warmImpulse.fill(0.0);
+    lastStep_ = 0.0;
+    throw Error("the step produced a non-finite state at " + bodyName(i) +
+                "; the world was restored to before the step (check masses, inertia and joint "
+                "parameters)");
+  }
+}
+
+}  // namespace blockstep

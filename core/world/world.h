@@ -1,0 +1,110 @@
+// The native C++ API: a world of rigid bodies and joints, stepped by the
+// block Sequential-Impulses solver.
+//
+//   blockstep::World world;
+//   BodyDesc desc;  desc.position = {0, 0, 1};
+//   BodyId bob = world.createBody(desc);
+//   BallJointDesc ball;  ball.common.bodyB = bob;  ball.anchor = {0, 0, 2};
+//   world.createJoint(ball);
+//   for (int i = 0; i < 60; ++i) world.step(1.0 / 60.0);
+//
+// Every call checks its input and throws blockstep::Error with a message
+// naming what was wrong; a call that throws leaves the world as it was.
+#pragma once
+
+#include <vector>
+
+#include "core/body/body.h"
+#include "core/constraints/joint.h"
+#include "core/constraints/joint_desc.h"
+#include "core/solver/settings.h"
+#include "core/solver/solver.h"
+#include "core/world/error.h"
+
+namespace blockstep {
+
+class World {
+ public:
+  // Largest step accepted, s. Longer steps are a units mistake (ms for s).
+  static constexpr double kMaxStep = 1.0;
+
+  World();
+
+  // Bodies.
+  BodyId createBody(const BodyDesc& desc);
+  void destroyBody(BodyId id);  // destroys the joints attached to it too
+  const Body& body(BodyId id) const;
+  int bodyCount() const;  // live bodies
+  void setPosition(BodyId id, const Vec3& position);
+  void setOrientation(BodyId id, const Quat& orientation);  // normalized here
+  void setLinearVelocity(BodyId id, const Vec3& v);
+  void setAngularVelocity(BodyId id, const Vec3& w);
+  void setMass(BodyId id, double mass, const Mat3& inertia);
+  void setType(BodyId id, BodyType type);
+  void setGravityEnabled(BodyId id, bool enabled);
+  void setDamping(BodyId id, double linear, double angular);
+  void setMaxAngularSpeed(BodyId id, double maxSpeed);
+  void addForce(BodyId id, const Vec3& force);                         // at the centre of mass
+  void addTorque(BodyId id, const Vec3& torque);                       // world frame
+  void addForceAtPoint(BodyId id, const Vec3& force, const Vec3& point);  // world point
+
+  // Joints.
+  JointId createJoint(const JointDesc& desc);
+  void destroyJoint(JointId id);
+  const JointDesc& joint(JointId id) const;
+  // Replaces limits, motors, softness and break thresholds. The bodies,
+  // kind, anchors and axes must stay those of creation (the joint's frames
+  // were fixed then); a change of them is refused.
+  void updateJoint(JointId id, const JointDesc& desc);
+  void setJointEnabled(JointId id, bool enabled);
+  bool jointBroken(JointId id) const;
+  void repairJoint(JointId id);  // a broken joint acts again
+  int jointCount() const;  // live joints
+  // Force and torque the joint applied over the last step.
+  JointFeedback jointFeedback(JointId id) const;
+  // How far the joint is from satisfied in the current poses.
+  JointError jointError(JointId id) const;
+
+  // World settings.
+  void setGravity(const Vec3& g);
+  const Vec3& gravity() const { return gravity_; }
+  SolverSettings& settings() { return settings_; }
+  const SolverSettings& settings() const { return settings_; }
+  void setSettings(const SolverSettings& s);
+
+  // Advances the world by h seconds. Checks the world first (non-finite
+  // state, bad step size); if the step would produce a non-finite state
+  // it restores the world and throws.
+  void step(double h);
+  const StepStats& lastStepStats() const { return stats_; }
+  double lastStepSize() const { return lastStep_; }
+
+ private:
+  Body& mutableBody(BodyId id);
+  Joint& mutableJoint(JointId id);
+  const Joint& liveJoint(JointId id) const;
+  const Body& endpoint(BodyId id) const;
+  void validateSettings(const SolverSettings& s) const;
+  void checkStateBeforeStep(double h) const;
+
+  struct Saved {
+    Vec3 x, v, w;
+    Quat q;
+  };
+
+  std::vector<Body> bodies_;
+  std::vector<Joint> joints_;
+  std::vector<BodyId> freeBodies_;
+  std::vector<JointId> freeJoints_;
+  std::vector<Saved> saved_;
+  Body worldBody_;
+  Vec3 gravity_ = Vec3(0.0, 0.0, -9.81);
+  SolverSettings settings_;
+  Solver solver_;
+  StepStats stats_;
+  double lastStep_ = 0.0;
+  int liveBodies_ = 0;
+  int liveJoints_ = 0;
+};
+
+}  // namespace blockstep

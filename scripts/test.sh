@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Builds blockstep and runs every test suite. Installs missing Debian
+# packages first (as root). Safe to run twice.
+#   scripts/test.sh            Release build in build/
+#   BLOCKSTEP_SANITIZE=ON scripts/test.sh   ASan + UBSan build in build-sanitize/
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+bash scripts/install-deps.sh
+
+sanitize="${BLOCKSTEP_SANITIZE:-OFF}"
+build_dir=build
+[ "$sanitize" = "ON" ] && build_dir=build-sanitize
+
+cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release -DBLOCKSTEP_SANITIZE="$sanitize"
+cmake --build "$build_dir" --parallel "$(nproc)"
+ctest --test-dir "$build_dir" --output-on-failure --parallel "$(nproc)" --timeout 300
