@@ -39,14 +39,14 @@ void runScene(benchmark::State& state, const char* name, SolverSettings settings
   state.counters["max_ang_deg"] = worstAng * 180.0 / kPi;
 }
 
-#define SCENE_BENCH(scene)                                                                   \
-  BENCHMARK_CAPTURE(runScene, scene##_paper10, #scene, SolverSettings::paper(10))           \
-      ->Unit(benchmark::kMillisecond);                                                      \
-  BENCHMARK_CAPTURE(runScene, scene##_paper20, #scene, SolverSettings::paper(20))           \
-      ->Unit(benchmark::kMillisecond);                                                      \
-  BENCHMARK_CAPTURE(runScene, scene##_substep10, #scene, SolverSettings::subStepped(10))    \
-      ->Unit(benchmark::kMillisecond);                                                      \
-  BENCHMARK_CAPTURE(runScene, scene##_substep20, #scene, SolverSettings::subStepped(20))    \
+#define SCENE_BENCH(scene)                                                               \
+  BENCHMARK_CAPTURE(runScene, scene##_paper10, #scene, SolverSettings::paper(10))        \
+      ->Unit(benchmark::kMillisecond);                                                   \
+  BENCHMARK_CAPTURE(runScene, scene##_paper20, #scene, SolverSettings::paper(20))        \
+      ->Unit(benchmark::kMillisecond);                                                   \
+  BENCHMARK_CAPTURE(runScene, scene##_substep10, #scene, SolverSettings::subStepped(10)) \
+      ->Unit(benchmark::kMillisecond);                                                   \
+  BENCHMARK_CAPTURE(runScene, scene##_substep20, #scene, SolverSettings::subStepped(20)) \
       ->Unit(benchmark::kMillisecond);
 
 SCENE_BENCH(ragdoll)

@@ -37,7 +37,8 @@ int main(int argc, char** argv) {
     if (arg == "--frames" && i + 1 < argc) {
       char* end = nullptr;
       const long n = std::strtol(argv[++i], &end, 10);
-      if (*end != '\0' || n < 1 || n > 1000000) return usage("--frames takes a whole number 1..1000000");
+      if (*end != '\0' || n < 1 || n > 1000000)
+        return usage("--frames takes a whole number 1..1000000");
       frames = static_cast<int>(n);
     } else if (arg == "--scene" && i + 1 < argc) {
       names.push_back(argv[++i]);

@@ -21,9 +21,8 @@ BodyId addBody(World& w, const Vec3& position, const MassProperties& m,
 }  // namespace
 
 const std::vector<std::string>& sceneNames() {
-  static const std::vector<std::string> names = {"ragdoll",  "chain",    "chain_swing",
-                                                 "cloth16",  "cloth32",  "softcube",
-                                                 "softcube_ball"};
+  static const std::vector<std::string> names = {"ragdoll", "chain",    "chain_swing",  "cloth16",
+                                                 "cloth32", "softcube", "softcube_ball"};
   return names;
 }
 
@@ -46,7 +45,8 @@ void ragdoll(Scene& s) {
   const BodyId head = addBody(w, Vec3(0, 0, 1.85), capsuleMass(5.0, 0.08, 0.14));
   const BodyId thighL = addBody(w, Vec3(-0.1, 0, 0.85), capsuleMass(7.0, 0.06, 0.38));
   const BodyId thighR = addBody(w, Vec3(0.1, 0, 0.85), capsuleMass(7.0, 0.06, 0.38));
-  for (BodyId b : {pelvis, torso, head, thighL, thighR}) w.setLinearVelocity(b, Vec3(0.5, 0.2, 0));
+  for (BodyId b : {pelvis, torso, head, thighL, thighR})
+    w.setLinearVelocity(b, Vec3(0.5, 0.2, 0));
   w.setAngularVelocity(torso, Vec3(1, 2, 0));
 
   HingeJointDesc spine;
@@ -87,8 +87,8 @@ void chain(Scene& s, bool swing) {
   BodyId previous = kWorldBody;
   for (int i = 0; i < links; ++i) {
     const double mass = i == links - 1 ? 10.0 : 0.1;
-    const BodyId link =
-        addBody(w, pin + dir * (length * (i + 0.5)), capsuleMass(mass, radius, length - 2 * radius), q);
+    const BodyId link = addBody(w, pin + dir * (length * (i + 0.5)),
+                                capsuleMass(mass, radius, length - 2 * radius), q);
     BallJointDesc j;
     j.common.bodyA = previous;
     j.common.bodyB = link;

@@ -16,7 +16,7 @@ struct Scene {
   std::string name;
   World world;
   std::vector<JointId> joints;
-  int frames = 300;          // 5 s at 60 Hz
+  int frames = 300;  // 5 s at 60 Hz
   double frameStep = 1.0 / 60.0;
 };
 

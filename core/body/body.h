@@ -22,15 +22,15 @@ enum class BodyType : std::uint8_t {
 
 struct BodyDesc {
   BodyType type = BodyType::Dynamic;
-  Vec3 position = Vec3::Zero();                // centre of mass, world, m
-  Quat orientation = Quat::Identity();         // body to world
-  Vec3 linearVelocity = Vec3::Zero();          // m/s
-  Vec3 angularVelocity = Vec3::Zero();         // world frame, rad/s
-  double mass = 1.0;                           // kg, > 0 for dynamic bodies
-  Mat3 inertia = Mat3::Identity();             // body frame, about the centre of mass, kg m^2
-  bool gravity = true;                         // world gravity applies
-  double linearDamping = 0.0;                  // 1/s: v *= 1 / (1 + h c)
-  double angularDamping = 0.0;                 // 1/s
+  Vec3 position = Vec3::Zero();         // centre of mass, world, m
+  Quat orientation = Quat::Identity();  // body to world
+  Vec3 linearVelocity = Vec3::Zero();   // m/s
+  Vec3 angularVelocity = Vec3::Zero();  // world frame, rad/s
+  double mass = 1.0;                    // kg, > 0 for dynamic bodies
+  Mat3 inertia = Mat3::Identity();      // body frame, about the centre of mass, kg m^2
+  bool gravity = true;                  // world gravity applies
+  double linearDamping = 0.0;           // 1/s: v *= 1 / (1 + h c)
+  double angularDamping = 0.0;          // 1/s
   double maxAngularSpeed = std::numeric_limits<double>::infinity();  // rad/s
 };
 
@@ -62,9 +62,7 @@ struct Body {
   }
 
   Vec3 worldPoint(const Vec3& local) const { return position + orientation * local; }
-  Vec3 localPoint(const Vec3& world) const {
-    return orientation.conjugate() * (world - position);
-  }
+  Vec3 localPoint(const Vec3& world) const { return orientation.conjugate() * (world - position); }
   Vec3 pointVelocity(const Vec3& world) const {
     return linearVelocity + angularVelocity.cross(world - position);
   }

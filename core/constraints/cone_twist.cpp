@@ -38,8 +38,8 @@ void buildJointRows(const ConeTwistJointDesc& d, const JointPose& p, RowWriter& 
   const Quat& r = rel.r;
 
   const double twistNorm = std::hypot(r.w(), r.x());
-  const Quat twist = twistNorm > 1e-9 ? Quat(r.w() / twistNorm, r.x() / twistNorm, 0.0, 0.0)
-                                      : Quat::Identity();
+  const Quat twist =
+      twistNorm > 1e-9 ? Quat(r.w() / twistNorm, r.x() / twistNorm, 0.0, 0.0) : Quat::Identity();
   const Quat swing = r * twist.conjugate();
   const double swingSin = swing.vec().norm();
   if (d.swingLimit < kPi && swingSin > 1e-9) {

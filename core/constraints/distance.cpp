@@ -19,8 +19,8 @@ void validateJoint(const DistanceJointDesc& d) {
     throw Error("distance joint lengths must be finite");
   }
   if (d.minLength >= 0.0 && d.maxLength >= 0.0 && d.minLength > d.maxLength) {
-    throw Error("distance joint needs minLength <= maxLength (got " +
-                std::to_string(d.minLength) + " > " + std::to_string(d.maxLength) + ")");
+    throw Error("distance joint needs minLength <= maxLength (got " + std::to_string(d.minLength) +
+                " > " + std::to_string(d.maxLength) + ")");
   }
 }
 

@@ -7,7 +7,9 @@
 
 namespace blockstep {
 
-void validateJoint(const FixedJointDesc& d) { validateCommon(d.common, "fixed"); }
+void validateJoint(const FixedJointDesc& d) {
+  validateCommon(d.common, "fixed");
+}
 
 JointFrames setupJoint(FixedJointDesc&, const Body& a, const Body& b) {
   // Anchor midway between the centres, so the rows are equally

@@ -9,8 +9,8 @@ namespace blockstep {
 namespace {
 
 std::string str(const Vec3& v) {
-  return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " +
-         std::to_string(v.z()) + ")";
+  return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " + std::to_string(v.z()) +
+         ")";
 }
 
 void validateSoftness(const Softness& s, const std::string& what) {

@@ -120,9 +120,9 @@ struct DistanceJointDesc {
   double maxLength = -1.0;
 };
 
-using JointDesc = std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc,
-                               UniversalJointDesc, ConeTwistJointDesc, SixDofJointDesc,
-                               DistanceJointDesc>;
+using JointDesc =
+    std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc, UniversalJointDesc,
+                 ConeTwistJointDesc, SixDofJointDesc, DistanceJointDesc>;
 
 inline const JointCommon& common(const JointDesc& d) {
   return std::visit([](const auto& j) -> const JointCommon& { return j.common; }, d);

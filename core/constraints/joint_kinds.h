@@ -12,9 +12,9 @@
 
 namespace blockstep {
 
-#define BLOCKSTEP_JOINT_KIND(Desc)                                   \
-  void validateJoint(const Desc& d);                                 \
-  JointFrames setupJoint(Desc& d, const Body& a, const Body& b);     \
+#define BLOCKSTEP_JOINT_KIND(Desc)                               \
+  void validateJoint(const Desc& d);                             \
+  JointFrames setupJoint(Desc& d, const Body& a, const Body& b); \
   void buildJointRows(const Desc& d, const JointPose& p, RowWriter& out);
 
 BLOCKSTEP_JOINT_KIND(BallJointDesc)

@@ -34,11 +34,11 @@ struct ConstraintRow {
   double effMass = 0.0;    // 1 / (K_ii + gamma): used when the row is solved alone
   double lo = -kInf;       // bounds on the accumulated impulse, N s
   double hi = kInf;
-  double impulse = 0.0;      // accumulated impulse of the current (sub)step
-  double stepImpulse = 0.0;  // summed over the sub-steps of one step
+  double impulse = 0.0;                // accumulated impulse of the current (sub)step
+  double stepImpulse = 0.0;            // summed over the sub-steps of one step
   const Softness* softness = nullptr;  // prepare-time only
   RowBias biasKind = RowBias::Baumgarte;
-  bool angular = false;    // torque-like row (for feedback and breaking)
+  bool angular = false;   // torque-like row (for feedback and breaking)
   std::uint8_t slot = 0;  // the joint's stable name for this row: warm starting follows it
 };
 

@@ -3,7 +3,11 @@
 // equality block (translation: rows along A's frame axes, rotation: the
 // section 4.4 quaternion rows); limits and motors are bounded rows.
 // A limited rotation axis reads its angle as 2 atan2(r_i, r_w): exact when
-// it is the only rotated axis, a twist-like measure otherwise.
+// it is the only rotation axis not locked. With two or more rotation axes
+// free or limited that reading is not an angle any more (it jumps once a
+// free axis turns past a half turn), so limits there need a swing-twist
+// decomposition, which this joint does not have yet: validateJoint refuses
+// a rotation limit beside another unlocked rotation axis.
 #include "core/constraints/joint_kinds.h"
 #include "core/constraints/parts/coordinate.h"
 #include "core/constraints/parts/rotation.h"
@@ -17,7 +21,7 @@ void validateJoint(const SixDofJointDesc& d) {
   if (!d.frame.coeffs().allFinite() || std::abs(d.frame.norm() - 1.0) > 1e-6) {
     throw Error("6-DOF joint frame must be a finite unit quaternion");
   }
-  static const char* names[6] = {"6-DOF joint x", "6-DOF joint y", "6-DOF joint z",
+  static const char* names[6] = {"6-DOF joint x",     "6-DOF joint y",     "6-DOF joint z",
                                  "6-DOF joint rot x", "6-DOF joint rot y", "6-DOF joint rot z"};
   for (int i = 0; i < 6; ++i) {
     const auto& ax = d.axes[i];
@@ -29,6 +33,14 @@ void validateJoint(const SixDofJointDesc& d) {
       validateLimit(l, names[i]);
     }
     validateMotor(ax.motor, names[i]);
+  }
+  int unlockedRotations = 0, limitedRotations = 0;
+  for (int i = 3; i < 6; ++i) {
+    unlockedRotations += d.axes[i].mode != SixDofJointDesc::Mode::Locked;
+    limitedRotations += d.axes[i].mode == SixDofJointDesc::Mode::Limited;
+  }
+  if (limitedRotations > 0 && unlockedRotations > 1) {
+    throw Error("6-DOF joint: a rotation limit needs the other two rotation axes locked");
   }
 }
 

@@ -70,7 +70,8 @@ struct Softness {
       return stepFraction > 0.0 && std::isfinite(stepFraction) && dampingRatio >= 0.0 &&
              std::isfinite(dampingRatio);
     }
-    return hertz > 0.0 && std::isfinite(hertz) && dampingRatio >= 0.0 && std::isfinite(dampingRatio);
+    return hertz > 0.0 && std::isfinite(hertz) && dampingRatio >= 0.0 &&
+           std::isfinite(dampingRatio);
   }
 
   // Bias rate beta / h (1/s) for step h.

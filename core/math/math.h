@@ -23,9 +23,15 @@ inline Mat3 skew(const Vec3& v) {
   return m;
 }
 
-inline bool isFinite(const Vec3& v) { return v.allFinite(); }
-inline bool isFinite(const Quat& q) { return q.coeffs().allFinite(); }
-inline bool isFinite(const Mat3& m) { return m.allFinite(); }
+inline bool isFinite(const Vec3& v) {
+  return v.allFinite();
+}
+inline bool isFinite(const Quat& q) {
+  return q.coeffs().allFinite();
+}
+inline bool isFinite(const Mat3& m) {
+  return m.allFinite();
+}
 
 // Quaternion time derivative for a world-frame angular velocity:
 // dq/dt = 1/2 (0, w) q. Integrating it with one Euler step and renormalizing

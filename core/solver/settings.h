@@ -93,8 +93,8 @@ struct StepStats {
   int islands = 0;
   int blocks = 0;
   int rows = 0;
-  double solveSeconds = 0.0;  // prepare + warm start + sweeps + relax
-  double stepSeconds = 0.0;   // the whole step
+  double solveSeconds = 0.0;              // prepare + warm start + sweeps + relax
+  double stepSeconds = 0.0;               // the whole step
   std::vector<ResidualSample> residuals;  // when recorded
   std::vector<JointId> brokenJoints;      // joints that broke in this step
 };

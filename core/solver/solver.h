@@ -62,8 +62,9 @@ class Solver {
   void islandResidual(int island, double& max, double& sumSq, int& count) const;
   std::int32_t solverIndex(BodyId id) const;
 
-  std::vector<SolverBody> bodies_;  // one per world body, then the static dummy
+  std::vector<SolverBody> bodies_;     // one per world body, then the static dummy
   std::vector<Vec3> startV_, startW_;  // velocities before the step (explicit Euler)
+  std::vector<Vec3> gyroOffset_;       // midpoint minus end angular velocity (gyroscopic)
   std::vector<ConstraintBlock> blocks_;
   std::vector<ConstraintRow> rows_;
   std::vector<std::int32_t> jointOfBlock_;

@@ -6,8 +6,8 @@
 namespace blockstep {
 
 struct SolverBody {
-  Vec3 v = Vec3::Zero();  // linear velocity, m/s
-  Vec3 w = Vec3::Zero();  // angular velocity, world, rad/s
+  Vec3 v = Vec3::Zero();     // linear velocity, m/s
+  Vec3 w = Vec3::Zero();     // angular velocity, world, rad/s
   Mat3 invI = Mat3::Zero();  // world inverse inertia R I0^-1 R^T
   double invMass = 0.0;
 };

@@ -11,8 +11,12 @@
 namespace blockstep {
 namespace {
 
-std::string bodyName(BodyId id) { return "body " + std::to_string(id); }
-std::string jointName(JointId id) { return "joint " + std::to_string(id); }
+std::string bodyName(BodyId id) {
+  return "body " + std::to_string(id);
+}
+std::string jointName(JointId id) {
+  return "joint " + std::to_string(id);
+}
 
 void requireFiniteVec(const Vec3& v, const std::string& what) {
   if (!v.allFinite()) throw Error(what + " is not finite");
@@ -23,7 +27,8 @@ void validateInertia(double mass, const Mat3& inertia, const std::string& who) {
     throw Error(who + ": mass must be positive and finite, got " + std::to_string(mass));
   }
   if (!inertia.allFinite()) throw Error(who + ": inertia is not finite");
-  if ((inertia - inertia.transpose()).cwiseAbs().maxCoeff() > 1e-9 * inertia.cwiseAbs().maxCoeff()) {
+  if ((inertia - inertia.transpose()).cwiseAbs().maxCoeff() >
+      1e-9 * inertia.cwiseAbs().maxCoeff()) {
     throw Error(who + ": inertia is not symmetric");
   }
   // Positive definite, and a physical body: each principal moment is at
@@ -59,8 +64,8 @@ BodyId World::createBody(const BodyDesc& d) {
     throw Error(who + ": orientation must be a finite, non-zero quaternion");
   }
   if (d.type == BodyType::Dynamic) validateInertia(d.mass, d.inertia, who);
-  if (!(d.linearDamping >= 0.0) || !(d.angularDamping >= 0.0) ||
-      !std::isfinite(d.linearDamping) || !std::isfinite(d.angularDamping)) {
+  if (!(d.linearDamping >= 0.0) || !(d.angularDamping >= 0.0) || !std::isfinite(d.linearDamping) ||
+      !std::isfinite(d.angularDamping)) {
     throw Error(who + ": damping must be >= 0 and finite");
   }
   if (!(d.maxAngularSpeed > 0.0)) throw Error(who + ": max angular speed must be > 0");
@@ -104,11 +109,17 @@ Body& World::mutableBody(BodyId id) {
   return bodies_[id];
 }
 
-const Body& World::body(BodyId id) const { return const_cast<World*>(this)->mutableBody(id); }
+const Body& World::body(BodyId id) const {
+  return const_cast<World*>(this)->mutableBody(id);
+}
 
-const Body& World::endpoint(BodyId id) const { return id == kWorldBody ? worldBody_ : body(id); }
+const Body& World::endpoint(BodyId id) const {
+  return id == kWorldBody ? worldBody_ : body(id);
+}
 
-int World::bodyCount() const { return liveBodies_; }
+int World::bodyCount() const {
+  return liveBodies_;
+}
 
 void World::destroyBody(BodyId id) {
   mutableBody(id);
@@ -176,7 +187,9 @@ void World::setType(BodyId id, BodyType type) {
   }
 }
 
-void World::setGravityEnabled(BodyId id, bool enabled) { mutableBody(id).gravity = enabled; }
+void World::setGravityEnabled(BodyId id, bool enabled) {
+  mutableBody(id).gravity = enabled;
+}
 
 void World::setDamping(BodyId id, double linear, double angular) {
   if (!(linear >= 0.0) || !(angular >= 0.0) || !std::isfinite(linear) || !std::isfinite(angular)) {
@@ -251,13 +264,15 @@ void World::destroyJoint(JointId id) {
   --liveJoints_;
 }
 
-const JointDesc& World::joint(JointId id) const { return liveJoint(id).desc; }
+const JointDesc& World::joint(JointId id) const {
+  return liveJoint(id).desc;
+}
 
 void World::updateJoint(JointId id, const JointDesc& desc) {
   Joint& j = mutableJoint(id);
   if (desc.index() != j.desc.index()) {
-    throw Error(jointName(id) + " is a " + jointKindName(j.desc) + " joint; cannot update it as a " +
-                jointKindName(desc) + " joint");
+    throw Error(jointName(id) + " is a " + jointKindName(j.desc) +
+                " joint; cannot update it as a " + jointKindName(desc) + " joint");
   }
   const JointCommon &now = common(j.desc), &next = common(desc);
   if (now.bodyA != next.bodyA || now.bodyB != next.bodyB) {
@@ -267,13 +282,21 @@ void World::updateJoint(JointId id, const JointDesc& desc) {
   j.desc = desc;
 }
 
-void World::setJointEnabled(JointId id, bool enabled) { mutableJoint(id).enabled = enabled; }
+void World::setJointEnabled(JointId id, bool enabled) {
+  mutableJoint(id).enabled = enabled;
+}
 
-bool World::jointBroken(JointId id) const { return liveJoint(id).broken; }
+bool World::jointBroken(JointId id) const {
+  return liveJoint(id).broken;
+}
 
-void World::repairJoint(JointId id) { mutableJoint(id).broken = false; }
+void World::repairJoint(JointId id) {
+  mutableJoint(id).broken = false;
+}
 
-int World::jointCount() const { return liveJoints_; }
+int World::jointCount() const {
+  return liveJoints_;
+}
 
 JointFeedback World::jointFeedback(JointId id) const {
   const Joint& j = liveJoint(id);
@@ -379,7 +402,8 @@ void World::step(double h) {
       bodies_[k].linearVelocity = saved_[k].v;
       bodies_[k].angularVelocity = saved_[k].w;
     }
-    for (Joint& j : joints_) j.warmImpulse.fill(0.0);
+    for (Joint& j : joints_)
+      j.warmImpulse.fill(0.0);
     lastStep_ = 0.0;
     throw Error("the step produced a non-finite state at " + bodyName(i) +
                 "; the world was restored to before the step (check masses, inertia and joint "

@@ -44,8 +44,8 @@ class World {
   void setGravityEnabled(BodyId id, bool enabled);
   void setDamping(BodyId id, double linear, double angular);
   void setMaxAngularSpeed(BodyId id, double maxSpeed);
-  void addForce(BodyId id, const Vec3& force);                         // at the centre of mass
-  void addTorque(BodyId id, const Vec3& torque);                       // world frame
+  void addForce(BodyId id, const Vec3& force);                            // at the centre of mass
+  void addTorque(BodyId id, const Vec3& torque);                          // world frame
   void addForceAtPoint(BodyId id, const Vec3& force, const Vec3& point);  // world point
 
   // Joints.
@@ -59,7 +59,7 @@ class World {
   void setJointEnabled(JointId id, bool enabled);
   bool jointBroken(JointId id) const;
   void repairJoint(JointId id);  // a broken joint acts again
-  int jointCount() const;  // live joints
+  int jointCount() const;        // live joints
   // Force and torque the joint applied over the last step.
   JointFeedback jointFeedback(JointId id) const;
   // How far the joint is from satisfied in the current poses.

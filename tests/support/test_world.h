@@ -27,7 +27,8 @@ inline BodyDesc sphereBody(const Vec3& position, double mass, double radius) {
 }
 
 inline void stepN(World& world, int n, double h) {
-  for (int i = 0; i < n; ++i) world.step(h);
+  for (int i = 0; i < n; ++i)
+    world.step(h);
 }
 
 inline double kineticEnergy(const Body& b) {
