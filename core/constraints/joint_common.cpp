@@ -63,6 +63,10 @@ void validateLimit(const Limit& l, const char* what) {
                 ", " + std::to_string(l.hi) + ")");
   }
   validateSoftness(l.softness, std::string(what) + " limit softness");
+  if (!(l.bounce >= 0.0 && l.bounce <= 1.0)) {
+    throw Error(std::string(what) + " limit bounce must be in [0, 1] (got " +
+                std::to_string(l.bounce) + ")");
+  }
 }
 
 void validateMotor(const Motor& m, const char* what) {

@@ -22,6 +22,7 @@ struct Limit {
   double lo = 0.0;  // rad for angles, m for distances
   double hi = 0.0;
   Softness softness = Softness::erpCfm(0.2, 0.0);  // ODE's StopERP / StopCFM
+  double bounce = 0.0;  // restitution at the stops, 0..1 (ODE's dParamBounce)
 };
 
 // A velocity motor: drives the axis toward targetVelocity with at most

@@ -34,6 +34,7 @@ struct ConstraintRow {
   double effMass = 0.0;    // 1 / (K_ii + gamma): used when the row is solved alone
   double lo = -kInf;       // bounds on the accumulated impulse, N s
   double hi = kInf;
+  double bounce = 0.0;                 // restitution of a one-sided row (limit stops)
   double impulse = 0.0;                // accumulated impulse of the current (sub)step
   double stepImpulse = 0.0;            // summed over the sub-steps of one step
   const Softness* softness = nullptr;  // prepare-time only
@@ -48,15 +49,19 @@ struct ConstraintRow {
 // equality) are the joint's equality rows, solved together as one block
 // with K = J M^-1 J^T + gamma factored once by LDL^T.
 //
-// Why bounded rows are separate 1x1 sub-blocks instead of inside the LDL^T
-// block: clamping one component of a block solution and keeping the others
-// changes what the others should have been, and re-solving with that row
-// fixed is a small active-set method whose active set can flip between
-// iterations, which is the jitter section 4.3 reports. Solving the bounded
-// rows first and the rigid block last (most important last, as Jolt and
-// Box2D order motor, limit, point) keeps every sub-solve exact and every
-// clamp on the accumulated impulse, so the iteration is a plain block
-// Gauss-Seidel on a convex problem and converges without flipping.
+// Why bounded rows are not inside the LDL^T block: clamping one component
+// of a block solution and keeping the others changes what the others
+// should have been, and re-solving with that row fixed is a small
+// active-set method whose active set can flip between iterations, which is
+// the jitter section 4.3 reports. Instead each bounded row is solved alone
+// with its accumulated impulse clamped, but in the null space of the
+// equality block (the Schur complement, Solver::coupleBoundedRows): its
+// impulse carries the equality impulses that keep the rigid rows as they
+// were, so a limit or motor acting at a lever arm is exact in one sweep.
+// Then the rigid block is solved last (most important last, as Jolt and
+// Box2D order motor, limit, point). Every sub-solve is exact and every
+// clamp is on the accumulated impulse: a block Gauss-Seidel on a convex
+// problem, which converges without flipping.
 struct ConstraintBlock {
   std::int32_t bodyA = 0;  // solver body indices (the static dummy for the world)
   std::int32_t bodyB = 0;

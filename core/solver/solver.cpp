@@ -229,7 +229,10 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     blk.equality = static_cast<std::uint8_t>(out.equalityCount());
     joint.block = static_cast<std::int32_t>(bi);
     const int n = blk.rowCount();
-    if (static_cast<int>(rows_.size()) < rowCount_ + n) rows_.resize(2 * (rowCount_ + n));
+    if (static_cast<int>(rows_.size()) < rowCount_ + n) {
+      rows_.resize(2 * (rowCount_ + n));
+      coupling_.resize(rows_.size());
+    }
     ConstraintRow* rows = &rows_[rowCount_];
     for (int i = 0; i < blk.bounded; ++i)
       rows[i] = out.boundedRow(i);
@@ -257,13 +260,25 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
           row.lo *= h;
           row.hi *= h;
           break;
-        case RowBias::Speculative:
+        case RowBias::Speculative: {
+          const double approach = rowVelocity(row, a, b);  // < 0: closing on the stop
+          if (row.bounce > 0.0 && approach < 0.0 && row.C + approach * h <= 0.0) {
+            // Restitution: leave the stop at bounce times the approach
+            // speed; kept through relax so the rebound survives it.
+            row.bias = row.biasRelax = row.bounce * approach;
+            row.gamma = 0.0;
+            break;
+          }
           if (row.C > 0.0) {
             row.bias = row.biasRelax = row.C / h;
             row.gamma = 0.0;
             break;
           }
-          [[fallthrough]];
+          row.bias = row.softness->biasRate(h) * row.C;
+          row.biasRelax = 0.0;
+          row.gamma = row.softness->gamma(h, kDiag);
+          break;
+        }
         case RowBias::Baumgarte:
           row.bias = row.softness->biasRate(h) * row.C;
           row.biasRelax = 0.0;
@@ -289,7 +304,69 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
       blk.ldl(r, r) += eq[r].gamma;
     }
     ldltFactor<6>(blk.ldl, ne);
+    if (s.blockMode == BlockMode::Block) coupleBoundedRows(blk);
   }
+}
+
+// A bounded row (limit, motor) of a joint acts along its own Jacobian
+// only: at a lever arm its impulse breaks the joint's equality rows, and
+// Gauss-Seidel between the two repairs that slowly (a hinge stop with
+// bounce 1 returned 89% of the speed after 10 sweeps). So each bounded row
+// is solved in the null space of its joint's equality block: its impulse
+// lambda comes with equality impulses w lambda, w = -K_e^-1 J_e M^-1 J_b^T,
+// which keep J_e v + gamma P_e unchanged; its effective mass is the Schur
+// complement J_b M^-1 (J_b^T + J_e^T w) + gamma_b. One bounded row and the
+// equality block are then solved exactly together; several bounded rows
+// of one joint still iterate among themselves (they act on different axes).
+void Solver::coupleBoundedRows(const ConstraintBlock& blk) {
+  const SolverBody& a = bodies_[blk.bodyA];
+  const SolverBody& b = bodies_[blk.bodyB];
+  ConstraintRow* rows = &rows_[blk.firstRow];
+  const ConstraintRow* eq = rows + blk.bounded;
+  const int ne = blk.equality;
+  for (int r = 0; r < blk.bounded; ++r) {
+    ConstraintRow& row = rows[r];
+    BoundedCoupling& c = coupling_[blk.firstRow + r];
+    double w[6];
+    for (int i = 0; i < ne; ++i) {
+      w[i] = -(a.invMass * eq[i].linA.dot(row.linA) + eq[i].angA.dot(row.invIangA) +
+               b.invMass * eq[i].linB.dot(row.linB) + eq[i].angB.dot(row.invIangB));
+    }
+    ldltSolve<6>(blk.ldl, ne, w);
+    Vec3 linA = row.linA, linB = row.linB;
+    c.dwA = row.invIangA;
+    c.dwB = row.invIangB;
+    for (int i = 0; i < ne; ++i) {
+      c.w[i] = w[i];
+      linA += w[i] * eq[i].linA;
+      linB += w[i] * eq[i].linB;
+      c.dwA += w[i] * eq[i].invIangA;
+      c.dwB += w[i] * eq[i].invIangB;
+    }
+    c.dvA = a.invMass * linA;
+    c.dvB = b.invMass * linB;
+    const double k = row.linA.dot(c.dvA) + row.angA.dot(c.dwA) + row.linB.dot(c.dvB) +
+                     row.angB.dot(c.dwB) + row.gamma;
+    // A bounded row that the equality rows already fix has no freedom left.
+    c.effMass = k > 1e-12 / std::max(row.effMass, 1e-300) ? 1.0 / k : 0.0;
+  }
+}
+
+void Solver::solveCoupledRow(int rowIndex, bool useBias, ConstraintRow* eq, int ne, SolverBody& a,
+                             SolverBody& b) {
+  ConstraintRow& row = rows_[rowIndex];
+  const BoundedCoupling& c = coupling_[rowIndex];
+  const double bias = useBias ? row.bias : row.biasRelax;
+  const double residual = rowVelocity(row, a, b) + bias + row.gamma * row.impulse;
+  const double next = std::clamp(row.impulse - residual * c.effMass, row.lo, row.hi);
+  const double dP = next - row.impulse;
+  row.impulse = next;
+  a.v += dP * c.dvA;
+  a.w += dP * c.dwA;
+  b.v += dP * c.dvB;
+  b.w += dP * c.dwB;
+  for (int i = 0; i < ne; ++i)
+    eq[i].impulse += c.w[i] * dP;
 }
 
 void Solver::warmStart() {
@@ -309,17 +386,17 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     SolverBody& a = bodies_[blk.bodyA];
     SolverBody& b = bodies_[blk.bodyB];
     ConstraintRow* rows = &rows_[blk.firstRow];
-    // Limits and motors first, the rigid block last (row.h says why).
-    for (int i = 0; i < blk.bounded; ++i)
-      solveRow(rows[i], useBias, a, b);
-
     ConstraintRow* eq = rows + blk.bounded;
     const int ne = blk.equality;
     if (mode == BlockMode::RowByRow) {
-      for (int i = 0; i < ne; ++i)
-        solveRow(eq[i], useBias, a, b);
+      for (int i = 0; i < blk.rowCount(); ++i)
+        solveRow(rows[i], useBias, a, b);
       continue;
     }
+    // Limits and motors first, the rigid block last (row.h says why).
+    for (int i = 0; i < blk.bounded; ++i)
+      solveCoupledRow(blk.firstRow + i, useBias, eq, ne, a, b);
+
     // Section 4.3: (J M^-1 J^T + c/h) dP = -(J v + b + gamma P) for the
     // whole block at once, with the factor from prepare().
     double dP[6];

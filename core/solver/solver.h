@@ -58,6 +58,9 @@ class Solver {
   void finish(const StepInput& in, StepStats& stats);
 
   void sweep(int island, bool useBias, BlockMode mode);
+  void coupleBoundedRows(const ConstraintBlock& blk);
+  void solveCoupledRow(int rowIndex, bool useBias, ConstraintRow* eq, int ne, SolverBody& a,
+                       SolverBody& b);
   // Residual of one island after a sweep: max and sum of squares, rows counted.
   void islandResidual(int island, double& max, double& sumSq, int& count) const;
   std::int32_t solverIndex(BodyId id) const;
@@ -67,6 +70,15 @@ class Solver {
   std::vector<Vec3> gyroOffset_;       // midpoint minus end angular velocity (gyroscopic)
   std::vector<ConstraintBlock> blocks_;
   std::vector<ConstraintRow> rows_;
+  // How a bounded row's impulse moves the bodies and its joint's equality
+  // impulses when solved in the equality block's null space (solver.cpp,
+  // coupleBoundedRows). Indexed like rows_; only bounded rows use it.
+  struct BoundedCoupling {
+    Vec3 dvA, dwA, dvB, dwB;  // body velocity change per unit impulse
+    double w[6];              // equality impulse per unit impulse
+    double effMass;
+  };
+  std::vector<BoundedCoupling> coupling_;
   std::vector<std::int32_t> jointOfBlock_;
   // Islands: blocks are ordered by island, island i owning blocks
   // [islandStart_[i], islandStart_[i + 1]).

@@ -42,25 +42,35 @@ JointDesc describe(int kind, const Pair& p) {
     case 0:
       return BallJointDesc{c, anchor};
     case 1: {
-      HingeJointDesc h{c, anchor, axis};
+      HingeJointDesc h;
+      h.common = c;
+      h.anchor = anchor;
+      h.axis = axis;
       h.limit = Limit{true, -0.6, 0.4};
       return h;
     }
     case 2: {
-      SliderJointDesc s{c, axis};
+      SliderJointDesc s;
+      s.common = c;
+      s.axis = axis;
       s.limit = Limit{true, -0.2, 0.3};
       return s;
     }
     case 3:
       return FixedJointDesc{c};
     case 4: {
-      UniversalJointDesc u{c, anchor, Vec3::UnitX(), Vec3::UnitY()};
+      UniversalJointDesc u;
+      u.common = c;
+      u.anchor = anchor;
       u.limit1 = Limit{true, -0.5, 0.5};
       u.limit2 = Limit{true, -0.3, 0.7};
       return u;
     }
     case 5: {
-      ConeTwistJointDesc ct{c, anchor, Vec3::UnitZ()};
+      ConeTwistJointDesc ct;
+      ct.common = c;
+      ct.anchor = anchor;
+      ct.twistAxis = Vec3::UnitZ();
       ct.swingLimit = 0.5;
       ct.twistLimit = Limit{true, -0.4, 0.4};
       return ct;
@@ -119,7 +129,9 @@ TEST(Joints, EveryKindHoldsUnderRandomForces) {
     }
     EXPECT_LT(worstLin, 1e-3) << "linear error (m), limits included";
     EXPECT_LT(worstAng, 0.01) << "angular error (rad), limits included";
-    if (kind != 3) EXPECT_GT(travelled, 1e-3) << "the joint's free axes must move";
+    if (kind != 3) {
+      EXPECT_GT(travelled, 1e-3) << "the joint's free axes must move";
+    }
   }
 }
 
@@ -127,12 +139,7 @@ TEST(Joints, HingeStopsAtItsLimit) {
   World world;
   world.setGravity(Vec3::Zero());
   const BodyId b = world.createBody(boxBody(Vec3(0.5, 0, 0), 1.0, Vec3(1, 0.1, 0.1)));
-  HingeJointDesc h;
-  h.common.bodyB = b;
-  h.anchor = Vec3::Zero();
-  h.axis = Vec3::UnitZ();
-  h.limit = Limit{true, -0.5, 0.25};
-  world.createJoint(h);
+  test::hingeToWorld(world, b, Vec3::UnitZ(), Limit{true, -0.5, 0.25});
   double maxAngle = 0.0;
   for (int i = 0; i < 120; ++i) {
     world.addTorque(b, Vec3(0, 0, 2.0));
@@ -144,16 +151,31 @@ TEST(Joints, HingeStopsAtItsLimit) {
   EXPECT_LT(world.body(b).angularVelocity.norm(), 1e-3) << "resting on the stop";
 }
 
+TEST(Joints, LimitBounceReversesTheApproachSpeed) {
+  // A bar spinning freely at 3 rad/s into the stop at 0.5 rad comes back at
+  // bounce x 3 rad/s; with bounce 0 it stays on the stop.
+  for (double bounce : {0.0, 0.5, 1.0}) {
+    World world;
+    world.setGravity(Vec3::Zero());
+    BodyDesc d = boxBody(Vec3(0.5, 0, 0), 1.0, Vec3(1, 0.1, 0.1));
+    d.position = Vec3(0.5, 0, 0);
+    const BodyId bar = world.createBody(d);
+    Limit stops{true, -1.0, 0.5};
+    stops.bounce = bounce;
+    test::hingeToWorld(world, bar, Vec3::UnitZ(), stops);
+    world.setLinearVelocity(bar, Vec3(0, 1.5, 0));  // rotation about the hinge at 3 rad/s
+    world.setAngularVelocity(bar, Vec3(0, 0, 3.0));
+    test::stepN(world, 20, 1.0 / 60.0);  // reaches the stop after 10 steps
+    EXPECT_NEAR(world.body(bar).angularVelocity.z(), -bounce * 3.0, 0.02 * 3.0) << bounce;
+  }
+}
+
 TEST(Joints, MotorsReachTheirTargetSpeed) {
   // Hinge: angular speed about the axis; slider: speed along the axis.
   World world;
   world.setGravity(Vec3::Zero());
   const BodyId wheel = world.createBody(boxBody(Vec3(0, 0, 0), 1.0, Vec3(0.4, 0.4, 0.1)));
-  HingeJointDesc h;
-  h.common.bodyB = wheel;
-  h.axis = Vec3::UnitZ();
-  h.motor = Motor{3.0, 50.0};
-  world.createJoint(h);
+  test::hingeToWorld(world, wheel, Vec3::UnitZ(), Limit{}, Motor{3.0, 50.0});
   const BodyId cart = world.createBody(boxBody(Vec3(2, 0, 0), 1.0, Vec3(0.2, 0.2, 0.2)));
   SliderJointDesc s;
   s.common.bodyB = cart;
@@ -173,11 +195,7 @@ TEST(Joints, MotorForceIsCapped) {
   BodyDesc d;
   d.inertia = Mat3::Identity();
   const BodyId wheel = world.createBody(d);
-  HingeJointDesc h;
-  h.common.bodyB = wheel;
-  h.axis = Vec3::UnitZ();
-  h.motor = Motor{100.0, 2.0};
-  world.createJoint(h);
+  test::hingeToWorld(world, wheel, Vec3::UnitZ(), Limit{}, Motor{100.0, 2.0});
   test::stepN(world, 60, 1.0 / 60.0);
   EXPECT_NEAR(world.body(wheel).angularVelocity.z(), 2.0, 1e-9);
 }

@@ -26,6 +26,18 @@ inline BodyDesc sphereBody(const Vec3& position, double mass, double radius) {
   return d;
 }
 
+// A hinge between the world and body b, anchored at the origin.
+inline JointId hingeToWorld(World& world, BodyId b, const Vec3& axis, const Limit& limit = {},
+                            const Motor& motor = {}) {
+  HingeJointDesc h;
+  h.common.bodyB = b;
+  h.anchor = Vec3::Zero();
+  h.axis = axis;
+  h.limit = limit;
+  h.motor = motor;
+  return world.createJoint(h);
+}
+
 inline void stepN(World& world, int n, double h) {
   for (int i = 0; i < n; ++i)
     world.step(h);

@@ -9,7 +9,11 @@
 // cross the stop within this step (bias C / h), so a body reaches a stop
 // without bouncing off it or tunnelling through it. Past the stop the row
 // uses the limit's softness (ODE's StopERP / StopCFM). lo == hi locks the
-// coordinate with an equality row instead.
+// coordinate with an equality row instead. With bounce > 0 a stop that the
+// coordinate reaches within the step sends it back at bounce times its
+// approach speed (ODE: c = max(c, -bounce v) at an active stop; we also
+// bounce when the stop is reached during the step, since speculative rows
+// stop it exactly at the stop where ODE would find it a little past).
 #pragma once
 
 #include "core/constraints/joint_desc.h"
@@ -20,10 +24,12 @@ namespace blockstep {
 // Three slots per coordinate: motor, lower, upper (locked uses lower).
 inline constexpr int kCoordinateSlots = 3;
 
-// A coordinate's stops: lo <= value <= hi (no stops when !enabled).
+// A coordinate's stops: lo <= value <= hi (no stops when !enabled), and
+// the restitution when it hits one.
 struct Stops {
   bool enabled = false;
   double lo = 0.0, hi = 0.0;
+  double bounce = 0.0;
 };
 
 // `stopSoftness` must outlive prepare(): rows keep a pointer to it.
@@ -57,6 +63,7 @@ inline void addCoordinateRows(const ConstraintRow& rate, double value, const Sto
   lower.softness = &stopSoftness;
   lower.lo = 0.0;
   lower.hi = kInf;
+  lower.bounce = limit.bounce;
 
   ConstraintRow& upper = out.bounded(firstSlot + 2);
   upper = rate;
@@ -70,12 +77,13 @@ inline void addCoordinateRows(const ConstraintRow& rate, double value, const Sto
   upper.softness = &stopSoftness;
   upper.lo = 0.0;
   upper.hi = kInf;
+  upper.bounce = limit.bounce;
 }
 
 inline void addCoordinateRows(const ConstraintRow& rate, double value, const Limit& limit,
                               const Motor& motor, int firstSlot, RowWriter& out) {
-  addCoordinateRows(rate, value, Stops{limit.enabled, limit.lo, limit.hi}, limit.softness, motor,
-                    firstSlot, out);
+  addCoordinateRows(rate, value, Stops{limit.enabled, limit.lo, limit.hi, limit.bounce},
+                    limit.softness, motor, firstSlot, out);
 }
 
 }  // namespace blockstep
