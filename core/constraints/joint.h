@@ -19,8 +19,9 @@ struct Joint {
   // (warm starting), and summed over the sub-steps of the last step.
   std::array<double, kMaxJointSlots> warmImpulse{};
   std::array<double, kMaxJointSlots> stepImpulse{};
-  double warmStepSize = 0.0;  // the step the warm impulses were solved for
-  std::int32_t block = -1;    // its block in the last step, -1 if it had none
+  std::uint32_t warmSlots = 0;  // bit i: warmImpulse[i] holds a value from the last solve
+  double warmStepSize = 0.0;    // the step the warm impulses were solved for
+  std::int32_t block = -1;      // its block in the last step, -1 if it had none
   bool alive = true;
   bool enabled = true;
   bool broken = false;

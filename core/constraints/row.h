@@ -43,11 +43,11 @@ struct ConstraintRow {
   std::uint8_t slot = 0;  // the joint's stable name for this row: warm starting follows it
 };
 
-// One joint's rows. Rows [first, first + bounded) are one-sided or
+// One joint's rows. Rows [first, first + equality) are the joint's
+// equality rows, solved together as one block with K = J M^-1 J^T + gamma
+// factored once by LDL^T; the following `bounded` rows are one-sided or
 // force-limited rows (motors, limits) solved one at a time with the
-// accumulated impulse clamped; rows [first + bounded, first + bounded +
-// equality) are the joint's equality rows, solved together as one block
-// with K = J M^-1 J^T + gamma factored once by LDL^T.
+// accumulated impulse clamped, before the block in every sweep.
 //
 // Why bounded rows are not inside the LDL^T block: clamping one component
 // of a block solution and keeping the others changes what the others
@@ -75,6 +75,9 @@ struct ConstraintBlock {
   Eigen::Matrix<double, 6, 6> ldl = Eigen::Matrix<double, 6, 6>::Zero();
 
   int rowCount() const { return bounded + equality; }
+  // Equality rows come first, then the bounded rows.
+  int boundedBegin() const { return firstRow + equality; }
+  int boundedEnd() const { return firstRow + equality + bounded; }
 };
 
 }  // namespace blockstep

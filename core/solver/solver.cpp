@@ -208,7 +208,6 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
   const auto blockCount = jointOfBlock_.size();
   blocks_.resize(blockCount);
   rowCount_ = 0;
-  RowWriter& out = writer_;
   for (std::size_t bi = 0; bi < blockCount; ++bi) {
     const std::int32_t j = jointOfBlock_[bi];
     Joint& joint = in.joints[j];
@@ -217,8 +216,15 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     const Body& B = c.bodyB == kWorldBody ? in.worldBody : in.bodies[c.bodyB];
     const JointPose pose =
         JointPose::make(A.position, A.orientation, B.position, B.orientation, joint.frames);
-    out.clear();
+    // Room for the most rows a joint can emit; grows only while warming up.
+    if (static_cast<int>(rows_.size()) < rowCount_ + kMaxJointSlots) {
+      rows_.resize(2 * (rowCount_ + kMaxJointSlots));
+      coupling_.resize(rows_.size());
+    }
+    ConstraintRow* rows = &rows_[rowCount_];
+    RowWriter out(rows);
     std::visit([&](const auto& d) { buildJointRows(d, pose, out); }, joint.desc);
+    out.finish();
 
     ConstraintBlock& blk = blocks_[bi];
     blk.bodyA = solverIndex(c.bodyA);
@@ -229,15 +235,6 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     blk.equality = static_cast<std::uint8_t>(out.equalityCount());
     joint.block = static_cast<std::int32_t>(bi);
     const int n = blk.rowCount();
-    if (static_cast<int>(rows_.size()) < rowCount_ + n) {
-      rows_.resize(2 * (rowCount_ + n));
-      coupling_.resize(rows_.size());
-    }
-    ConstraintRow* rows = &rows_[rowCount_];
-    for (int i = 0; i < blk.bounded; ++i)
-      rows[i] = out.boundedRow(i);
-    for (int i = 0; i < blk.equality; ++i)
-      rows[blk.bounded + i] = out.equalityRow(i);
     rowCount_ += n;
 
     const SolverBody& a = bodies_[blk.bodyA];
@@ -287,14 +284,15 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
       }
       const double k = kDiag + row.gamma;
       row.effMass = k > 0.0 ? 1.0 / k : 0.0;
-      row.impulse = std::clamp(warmRatio * joint.warmImpulse[row.slot], row.lo, row.hi);
+      const double warm = (joint.warmSlots >> row.slot) & 1u ? joint.warmImpulse[row.slot] : 0.0;
+      row.impulse = std::clamp(warmRatio * warm, row.lo, row.hi);
       row.softness = nullptr;
     }
 
     // K = J M^-1 J^T + gamma for the equality rows, factored once here and
     // reused by every sweep of this (sub-)step.
     const int ne = blk.equality;
-    ConstraintRow* eq = rows + blk.bounded;
+    const ConstraintRow* eq = rows;
     for (int r = 0; r < ne; ++r) {
       for (int col = 0; col <= r; ++col) {
         blk.ldl(r, col) =
@@ -303,7 +301,7 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
       }
       blk.ldl(r, r) += eq[r].gamma;
     }
-    ldltFactor<6>(blk.ldl, ne);
+    ldltFactor(blk.ldl, ne);
     if (s.blockMode == BlockMode::Block) coupleBoundedRows(blk);
   }
 }
@@ -321,18 +319,17 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
 void Solver::coupleBoundedRows(const ConstraintBlock& blk) {
   const SolverBody& a = bodies_[blk.bodyA];
   const SolverBody& b = bodies_[blk.bodyB];
-  ConstraintRow* rows = &rows_[blk.firstRow];
-  const ConstraintRow* eq = rows + blk.bounded;
+  const ConstraintRow* eq = &rows_[blk.firstRow];
   const int ne = blk.equality;
-  for (int r = 0; r < blk.bounded; ++r) {
-    ConstraintRow& row = rows[r];
-    BoundedCoupling& c = coupling_[blk.firstRow + r];
+  for (int r = blk.boundedBegin(); r < blk.boundedEnd(); ++r) {
+    const ConstraintRow& row = rows_[r];
+    BoundedCoupling& c = coupling_[r];
     double w[6];
     for (int i = 0; i < ne; ++i) {
       w[i] = -(a.invMass * eq[i].linA.dot(row.linA) + eq[i].angA.dot(row.invIangA) +
                b.invMass * eq[i].linB.dot(row.linB) + eq[i].angB.dot(row.invIangB));
     }
-    ldltSolve<6>(blk.ldl, ne, w);
+    ldltSolve(blk.ldl, ne, w);
     Vec3 linA = row.linA, linB = row.linB;
     c.dwA = row.invIangA;
     c.dwB = row.invIangB;
@@ -386,7 +383,7 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     SolverBody& a = bodies_[blk.bodyA];
     SolverBody& b = bodies_[blk.bodyB];
     ConstraintRow* rows = &rows_[blk.firstRow];
-    ConstraintRow* eq = rows + blk.bounded;
+    ConstraintRow* eq = rows;
     const int ne = blk.equality;
     if (mode == BlockMode::RowByRow) {
       for (int i = 0; i < blk.rowCount(); ++i)
@@ -394,8 +391,9 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
       continue;
     }
     // Limits and motors first, the rigid block last (row.h says why).
-    for (int i = 0; i < blk.bounded; ++i)
-      solveCoupledRow(blk.firstRow + i, useBias, eq, ne, a, b);
+    for (int i = blk.boundedBegin(); i < blk.boundedEnd(); ++i) {
+      solveCoupledRow(i, useBias, eq, ne, a, b);
+    }
 
     // Section 4.3: (J M^-1 J^T + c/h) dP = -(J v + b + gamma P) for the
     // whole block at once, with the factor from prepare().
@@ -404,7 +402,7 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
       const double bias = useBias ? eq[i].bias : eq[i].biasRelax;
       dP[i] = -(rowVelocity(eq[i], a, b) + bias + eq[i].gamma * eq[i].impulse);
     }
-    ldltSolve<6>(blk.ldl, ne, dP);
+    ldltSolve(blk.ldl, ne, dP);
     Vec3 dvA = Vec3::Zero(), dwA = Vec3::Zero(), dvB = Vec3::Zero(), dwB = Vec3::Zero();
     for (int i = 0; i < ne; ++i) {
       eq[i].impulse += dP[i];
@@ -514,10 +512,11 @@ void Solver::storeImpulses(const StepInput& in, double h) {
   }
   for (const ConstraintBlock& blk : blocks_) {
     Joint& joint = in.joints[blk.joint];
-    joint.warmImpulse.fill(0.0);
     const ConstraintRow* rows = &rows_[blk.firstRow];
+    joint.warmSlots = 0;
     for (int i = 0; i < blk.rowCount(); ++i) {
       joint.warmImpulse[rows[i].slot] = rows[i].impulse;
+      joint.warmSlots |= 1u << rows[i].slot;
       joint.stepImpulse[rows[i].slot] += rows[i].impulse;
     }
     joint.warmStepSize = h;
@@ -539,7 +538,7 @@ void Solver::finish(const StepInput& in, StepStats& stats) {
     }
     if (std::sqrt(forceSq) > c.breakForce * h || std::sqrt(torqueSq) > c.breakTorque * h) {
       joint.broken = true;
-      joint.warmImpulse.fill(0.0);
+      joint.warmSlots = 0;
       stats.brokenJoints.push_back(blk.joint);
     }
   }

@@ -89,7 +89,6 @@ class Solver {
   std::vector<std::int32_t> islandStart_;
   std::vector<std::uint8_t> islandActive_;
   std::vector<std::int32_t> activeJoints_;
-  RowWriter writer_;
   int islandCount_ = 0;
   int rowCount_ = 0;
   std::int32_t dummy_ = 0;

@@ -1,5 +1,6 @@
 #include "core/world/world.h"
 
+#include <array>
 #include <cmath>
 #include <string>
 #include <variant>
@@ -311,15 +312,18 @@ JointError World::jointError(JointId id) const {
   const Body& b = endpoint(c.bodyB);
   const JointPose pose =
       JointPose::make(a.position, a.orientation, b.position, b.orientation, j.frames);
-  RowWriter out;
+  std::array<ConstraintRow, kMaxJointSlots> rows;
+  RowWriter out(rows.data());
   std::visit([&](const auto& d) { buildJointRows(d, pose, out); }, j.desc);
+  out.finish();
+  const int ne = out.equalityCount();
   double linSq = 0.0, angSq = 0.0, linLimit = 0.0, angLimit = 0.0;
-  for (int i = 0; i < out.equalityCount(); ++i) {
-    const ConstraintRow& r = out.equalityRow(i);
+  for (int i = 0; i < ne; ++i) {
+    const ConstraintRow& r = rows[i];
     (r.angular ? angSq : linSq) += r.C * r.C;
   }
-  for (int i = 0; i < out.boundedCount(); ++i) {
-    const ConstraintRow& r = out.boundedRow(i);
+  for (int i = ne; i < ne + out.boundedCount(); ++i) {
+    const ConstraintRow& r = rows[i];
     if (r.biasKind != RowBias::Speculative || r.C >= 0.0) continue;
     double& worst = r.angular ? angLimit : linLimit;
     worst = std::max(worst, -r.C);

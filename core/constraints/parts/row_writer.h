@@ -1,6 +1,7 @@
-// Collects the rows one joint emits in prepare(): bounded rows (limits,
-// motors) and equality rows apart, since the solver runs the bounded rows
-// one by one and the equality rows as one LDL^T block (row.h says why).
+// Collects the rows one joint emits in prepare(), straight into the
+// solver's row storage: equality rows (solved together as one LDL^T block)
+// and bounded rows (limits, motors: solved one by one, row.h says why).
+// The joint's rows end up as [equality..., bounded...].
 #pragma once
 
 #include <cassert>
@@ -12,33 +13,41 @@ namespace blockstep {
 inline constexpr int kMaxEqualityRows = 6;
 inline constexpr int kMaxBoundedRows = 18;  // 6 axes x (motor, lower, upper)
 inline constexpr int kMaxJointSlots = kMaxEqualityRows + kMaxBoundedRows;
+static_assert(kMaxJointSlots <= 32, "Joint::warmSlots is a 32-bit mask of slots");
 
 class RowWriter {
  public:
+  // `rows` must have room for kMaxJointSlots rows.
+  explicit RowWriter(ConstraintRow* rows) : rows_(rows) {}
+
   ConstraintRow& equality(int slot) {
     assert(equalityCount_ < kMaxEqualityRows);
-    ConstraintRow& r = equality_[equalityCount_++];
-    r = ConstraintRow{};
-    r.slot = static_cast<std::uint8_t>(slot);
-    return r;
+    return fresh(rows_[equalityCount_++], slot);
   }
   ConstraintRow& bounded(int slot) {
     assert(boundedCount_ < kMaxBoundedRows);
-    ConstraintRow& r = bounded_[boundedCount_++];
+    return fresh(rows_[kMaxEqualityRows + boundedCount_++], slot);
+  }
+
+  // Closes the gap between the equality and the bounded rows.
+  void finish() {
+    if (equalityCount_ == kMaxEqualityRows) return;
+    for (int i = 0; i < boundedCount_; ++i) {
+      rows_[equalityCount_ + i] = rows_[kMaxEqualityRows + i];
+    }
+  }
+
+  int equalityCount() const { return equalityCount_; }
+  int boundedCount() const { return boundedCount_; }
+
+ private:
+  static ConstraintRow& fresh(ConstraintRow& r, int slot) {
     r = ConstraintRow{};
     r.slot = static_cast<std::uint8_t>(slot);
     return r;
   }
-  void clear() { equalityCount_ = boundedCount_ = 0; }
 
-  int equalityCount() const { return equalityCount_; }
-  int boundedCount() const { return boundedCount_; }
-  const ConstraintRow& equalityRow(int i) const { return equality_[i]; }
-  const ConstraintRow& boundedRow(int i) const { return bounded_[i]; }
-
- private:
-  ConstraintRow equality_[kMaxEqualityRows];
-  ConstraintRow bounded_[kMaxBoundedRows];
+  ConstraintRow* rows_;
   int equalityCount_ = 0;
   int boundedCount_ = 0;
 };
