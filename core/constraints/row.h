@@ -10,8 +10,6 @@
 
 namespace blockstep {
 
-inline constexpr double kInf = std::numeric_limits<double>::infinity();
-
 // How a row's bias is formed in prepare().
 enum class RowBias : std::uint8_t {
   Baumgarte,    // b = beta/h C (soft); equality rows and limits past their stop
@@ -34,13 +32,24 @@ struct ConstraintRow {
   double effMass = 0.0;    // 1 / (K_ii + gamma): used when the row is solved alone
   double lo = -kInf;       // bounds on the accumulated impulse, N s
   double hi = kInf;
-  double bounce = 0.0;                 // restitution of a one-sided row (limit stops)
-  double impulse = 0.0;                // accumulated impulse of the current (sub)step
-  double stepImpulse = 0.0;            // summed over the sub-steps of one step
+  double impulse = 0.0;  // accumulated impulse of the current (sub)step
+  // One-sided rows (limits, contact normals):
+  double bounce = 0.0;           // restitution
+  double bounceThreshold = 0.0;  // approach speed below which there is no bounce
+  double slop = 0.0;             // error allowed before Baumgarte pushes back
+  double maxBias = kInf;         // cap on the Baumgarte push-back speed
+  // Friction rows: bounds of +-mu times the accumulated impulse of row
+  // frictionOf of the same block (kAllNormals: the sum of its normal rows).
+  double mu = 0.0;
   const Softness* softness = nullptr;  // prepare-time only
+  std::int8_t frictionOf = kNoFriction;
+  bool conePair = false;  // this row and the next share one friction disk
   RowBias biasKind = RowBias::Baumgarte;
   bool angular = false;   // torque-like row (for feedback and breaking)
   std::uint8_t slot = 0;  // the joint's stable name for this row: warm starting follows it
+
+  static constexpr std::int8_t kNoFriction = -1;
+  static constexpr std::int8_t kAllNormals = -2;
 };
 
 // One joint's rows. Rows [first, first + equality) are the joint's
@@ -68,8 +77,10 @@ struct ConstraintBlock {
   std::int32_t firstRow = 0;
   std::uint8_t bounded = 0;
   std::uint8_t equality = 0;
-  std::int32_t joint = -1;
-  std::int32_t island = -1;
+  std::int32_t joint = -1;    // the joint it came from, or -1
+  std::int32_t contact = -1;  // the contact manifold it came from, or -1
+  // Contact normals: the block's rows are one-sided (impulses >= 0).
+  bool unilateral = false;
   // LDL^T of the equality block: unit lower L below the diagonal,
   // 1/D on the diagonal (0 where the pivot vanished: a redundant row).
   Eigen::Matrix<double, 6, 6> ldl = Eigen::Matrix<double, 6, 6>::Zero();

@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <cmath>
+#include <limits>
 
 namespace blockstep {
 
@@ -15,6 +16,7 @@ using Mat3 = Eigen::Matrix3d;
 using Quat = Eigen::Quaterniond;
 
 inline constexpr double kPi = 3.14159265358979323846;
+inline constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // [v]x such that skew(v) * w == v.cross(w).
 inline Mat3 skew(const Vec3& v) {

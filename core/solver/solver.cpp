@@ -7,6 +7,7 @@
 
 #include "core/constraints/joint_kinds.h"
 #include "core/constraints/ldlt.h"
+#include "core/constraints/parts/axis.h"
 
 namespace blockstep {
 namespace {
@@ -69,6 +70,12 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   buildIslands(in);
   for (Joint& j : in.joints)
     j.stepImpulse.fill(0.0);
+  for (ContactManifold& m : in.contacts) {
+    for (ContactPoint& p : m.points) {
+      p.stepNormalImpulse = 0.0;
+      p.stepTangentImpulse[0] = p.stepTangentImpulse[1] = 0.0;
+    }
+  }
 
   for (int sub = 0; sub < substeps; ++sub) {
     integrateVelocities(in, s, h);
@@ -80,7 +87,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
         deadline > 0.0 ? (deadline - seconds(start, solveStart)) / (substeps - sub) : 0.0;
     stats.iterations += solve(s, sub, subDeadline, stats);
     integratePositions(in, s, h);
-    relax(s);
+    relax(s, h);
     storeImpulses(in, h);
     stats.solveSeconds += seconds(solveStart, Clock::now());
   }
@@ -110,40 +117,53 @@ void Solver::buildIslands(const StepInput& in) {
   auto dynamicBody = [&](BodyId id) {
     return id != kWorldBody && in.bodies[id].alive && in.bodies[id].isDynamic();
   };
-  activeJoints_.clear();
+  auto bodiesOf = [&](std::int32_t source) {
+    if (source >= 0) {
+      const JointCommon& c = common(in.joints[source].desc);
+      return std::pair{c.bodyA, c.bodyB};
+    }
+    const ContactManifold& m = in.contacts[contactIndex(source)];
+    return std::pair{m.bodyA, m.bodyB};
+  };
+  active_.clear();
+  auto consider = [&](std::int32_t source) {
+    const auto [bodyA, bodyB] = bodiesOf(source);
+    const bool dynA = dynamicBody(bodyA), dynB = dynamicBody(bodyB);
+    if (!dynA && !dynB) return;  // nothing to move
+    active_.push_back(source);
+    if (dynA && dynB) {
+      const std::int32_t ra = find(bodyA), rb = find(bodyB);
+      if (ra != rb) parent_[ra] = rb;
+    }
+  };
   for (std::int32_t j = 0; j < static_cast<std::int32_t>(in.joints.size()); ++j) {
     Joint& joint = in.joints[j];
     joint.block = -1;
-    if (!joint.alive || !joint.enabled || joint.broken) continue;
-    const JointCommon& c = common(joint.desc);
-    const bool dynA = dynamicBody(c.bodyA), dynB = dynamicBody(c.bodyB);
-    if (!dynA && !dynB) continue;  // nothing to move
-    activeJoints_.push_back(j);
-    if (dynA && dynB) {
-      const std::int32_t ra = find(c.bodyA), rb = find(c.bodyB);
-      if (ra != rb) parent_[ra] = rb;
-    }
+    if (joint.alive && joint.enabled && !joint.broken) consider(j);
   }
-  // Number the islands by root, then order the joints island by island
+  for (std::size_t c = 0; c < in.contacts.size(); ++c) {
+    if (in.contacts[c].pointCount > 0) consider(contactSource(static_cast<std::int32_t>(c)));
+  }
+  // Number the islands by root, then order the blocks island by island
   // (a counting sort) so each island's blocks are contiguous.
   islandOfRoot_.assign(bodyCount, -1);
   islandCount_ = 0;
-  jointIsland_.resize(activeJoints_.size());
-  for (std::size_t k = 0; k < activeJoints_.size(); ++k) {
-    const JointCommon& c = common(in.joints[activeJoints_[k]].desc);
-    const std::int32_t root = find(dynamicBody(c.bodyA) ? c.bodyA : c.bodyB);
+  sourceIsland_.resize(active_.size());
+  for (std::size_t k = 0; k < active_.size(); ++k) {
+    const auto [bodyA, bodyB] = bodiesOf(active_[k]);
+    const std::int32_t root = find(dynamicBody(bodyA) ? bodyA : bodyB);
     if (islandOfRoot_[root] < 0) islandOfRoot_[root] = islandCount_++;
-    jointIsland_[k] = islandOfRoot_[root];
+    sourceIsland_[k] = islandOfRoot_[root];
   }
   islandStart_.assign(islandCount_ + 1, 0);
-  for (std::int32_t island : jointIsland_)
+  for (std::int32_t island : sourceIsland_)
     ++islandStart_[island + 1];
   for (int i = 0; i < islandCount_; ++i)
     islandStart_[i + 1] += islandStart_[i];
   fill_.assign(islandStart_.begin(), islandStart_.end() - 1);
-  jointOfBlock_.resize(activeJoints_.size());
-  for (std::size_t k = 0; k < activeJoints_.size(); ++k) {
-    jointOfBlock_[fill_[jointIsland_[k]]++] = activeJoints_[k];
+  sourceOfBlock_.resize(active_.size());
+  for (std::size_t k = 0; k < active_.size(); ++k) {
+    sourceOfBlock_[fill_[sourceIsland_[k]]++] = active_[k];
   }
   islandActive_.resize(islandCount_);
 }
@@ -205,105 +225,214 @@ void Solver::integrateVelocities(const StepInput& in, const SolverSettings& s, d
 }
 
 void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
-  const auto blockCount = jointOfBlock_.size();
+  const auto blockCount = sourceOfBlock_.size();
   blocks_.resize(blockCount);
   rowCount_ = 0;
   for (std::size_t bi = 0; bi < blockCount; ++bi) {
-    const std::int32_t j = jointOfBlock_[bi];
-    Joint& joint = in.joints[j];
-    const JointCommon& c = common(joint.desc);
-    const Body& A = c.bodyA == kWorldBody ? in.worldBody : in.bodies[c.bodyA];
-    const Body& B = c.bodyB == kWorldBody ? in.worldBody : in.bodies[c.bodyB];
-    const JointPose pose =
-        JointPose::make(A.position, A.orientation, B.position, B.orientation, joint.frames);
-    // Room for the most rows a joint can emit; grows only while warming up.
+    // Room for the most rows a block can have; grows only while warming up.
     if (static_cast<int>(rows_.size()) < rowCount_ + kMaxJointSlots) {
       rows_.resize(2 * (rowCount_ + kMaxJointSlots));
       coupling_.resize(rows_.size());
     }
-    ConstraintRow* rows = &rows_[rowCount_];
-    RowWriter out(rows);
-    std::visit([&](const auto& d) { buildJointRows(d, pose, out); }, joint.desc);
-    out.finish();
-
     ConstraintBlock& blk = blocks_[bi];
-    blk.bodyA = solverIndex(c.bodyA);
-    blk.bodyB = solverIndex(c.bodyB);
-    blk.joint = j;
     blk.firstRow = rowCount_;
-    blk.bounded = static_cast<std::uint8_t>(out.boundedCount());
-    blk.equality = static_cast<std::uint8_t>(out.equalityCount());
-    joint.block = static_cast<std::int32_t>(bi);
-    const int n = blk.rowCount();
-    rowCount_ += n;
-
-    const SolverBody& a = bodies_[blk.bodyA];
-    const SolverBody& b = bodies_[blk.bodyB];
-    const double warmRatio =
-        s.warmStarting && joint.warmStepSize > 0.0 ? h / joint.warmStepSize : 0.0;
-    for (int i = 0; i < n; ++i) {
-      ConstraintRow& row = rows[i];
-      if (row.softness && s.rigidJointSoftness && row.softness->mode == Softness::Mode::ErpCfm) {
-        row.softness = &*s.rigidJointSoftness;
-      }
-      row.invIangA = a.invI * row.angA;
-      row.invIangB = b.invI * row.angB;
-      const double kDiag = a.invMass * row.linA.squaredNorm() + row.angA.dot(row.invIangA) +
-                           b.invMass * row.linB.squaredNorm() + row.angB.dot(row.invIangB);
-      switch (row.biasKind) {
-        case RowBias::Velocity:  // a motor: lo/hi came as forces
-          row.bias = row.biasRelax = -row.target;
-          row.gamma = 0.0;
-          row.lo *= h;
-          row.hi *= h;
-          break;
-        case RowBias::Speculative: {
-          const double approach = rowVelocity(row, a, b);  // < 0: closing on the stop
-          if (row.bounce > 0.0 && approach < 0.0 && row.C + approach * h <= 0.0) {
-            // Restitution: leave the stop at bounce times the approach
-            // speed; kept through relax so the rebound survives it.
-            row.bias = row.biasRelax = row.bounce * approach;
-            row.gamma = 0.0;
-            break;
-          }
-          if (row.C > 0.0) {
-            row.bias = row.biasRelax = row.C / h;
-            row.gamma = 0.0;
-            break;
-          }
-          row.bias = row.softness->biasRate(h) * row.C;
-          row.biasRelax = 0.0;
-          row.gamma = row.softness->gamma(h, kDiag);
-          break;
-        }
-        case RowBias::Baumgarte:
-          row.bias = row.softness->biasRate(h) * row.C;
-          row.biasRelax = 0.0;
-          row.gamma = row.softness->gamma(h, kDiag);
-          break;
-      }
-      const double k = kDiag + row.gamma;
-      row.effMass = k > 0.0 ? 1.0 / k : 0.0;
-      const double warm = (joint.warmSlots >> row.slot) & 1u ? joint.warmImpulse[row.slot] : 0.0;
-      row.impulse = std::clamp(warmRatio * warm, row.lo, row.hi);
-      row.softness = nullptr;
+    const std::int32_t source = sourceOfBlock_[bi];
+    if (source >= 0) {
+      buildJointBlock(in, s, h, source, blk);
+      in.joints[source].block = static_cast<std::int32_t>(bi);
+    } else {
+      buildContactBlock(in, s, h, contactIndex(source), blk);
     }
-
-    // K = J M^-1 J^T + gamma for the equality rows, factored once here and
-    // reused by every sweep of this (sub-)step.
-    const int ne = blk.equality;
-    const ConstraintRow* eq = rows;
-    for (int r = 0; r < ne; ++r) {
-      for (int col = 0; col <= r; ++col) {
-        blk.ldl(r, col) =
-            a.invMass * eq[r].linA.dot(eq[col].linA) + eq[r].angA.dot(eq[col].invIangA) +
-            b.invMass * eq[r].linB.dot(eq[col].linB) + eq[r].angB.dot(eq[col].invIangB);
-      }
-      blk.ldl(r, r) += eq[r].gamma;
-    }
-    ldltFactor(blk.ldl, ne);
-    if (s.blockMode == BlockMode::Block) coupleBoundedRows(blk);
+    rowCount_ += blk.rowCount();
+    finishBlock(s, h, blk);
   }
+}
+
+void Solver::buildJointBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t j,
+                             ConstraintBlock& blk) {
+  Joint& joint = in.joints[j];
+  const JointCommon& c = common(joint.desc);
+  const Body& A = c.bodyA == kWorldBody ? in.worldBody : in.bodies[c.bodyA];
+  const Body& B = c.bodyB == kWorldBody ? in.worldBody : in.bodies[c.bodyB];
+  const JointPose pose =
+      JointPose::make(A.position, A.orientation, B.position, B.orientation, joint.frames);
+  ConstraintRow* rows = &rows_[blk.firstRow];
+  RowWriter out(rows);
+  std::visit([&](const auto& d) { buildJointRows(d, pose, out); }, joint.desc);
+  out.finish();
+  blk.bodyA = solverIndex(c.bodyA);
+  blk.bodyB = solverIndex(c.bodyB);
+  blk.joint = j;
+  blk.contact = -1;
+  blk.unilateral = false;
+  blk.bounded = static_cast<std::uint8_t>(out.boundedCount());
+  blk.equality = static_cast<std::uint8_t>(out.equalityCount());
+  const double warmRatio =
+      s.warmStarting && joint.warmStepSize > 0.0 ? h / joint.warmStepSize : 0.0;
+  for (int i = 0; i < blk.rowCount(); ++i) {
+    ConstraintRow& row = rows[i];
+    const bool warm = (joint.warmSlots >> row.slot) & 1u;
+    row.impulse = warm ? warmRatio * joint.warmImpulse[row.slot] : 0.0;
+    if (row.softness && s.rigidJointSoftness && row.softness->mode == Softness::Mode::ErpCfm) {
+      row.softness = &*s.rigidJointSoftness;
+    }
+  }
+}
+
+// A manifold's rows: the normal of each point (section 4.2: the paper's
+// contact row, with B's side first in our sign convention), solved
+// together as one unilateral block; then two friction rows per point
+// bounded by that point's normal impulse, and rolling and spinning rows
+// bounded by the manifold's total normal impulse.
+// Row slots: normal i -> i, friction of point i along tangent d ->
+// kMaxManifoldPoints + 2 i + d, rolling about t1, t2, n -> 12, 13, 14.
+void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, double h,
+                               std::int32_t c, ConstraintBlock& blk) {
+  ContactManifold& m = in.contacts[c];
+  const ContactSurface& surface = m.surface;
+  const Body& A = m.bodyA == kWorldBody ? in.worldBody : in.bodies[m.bodyA];
+  const Body& B = m.bodyB == kWorldBody ? in.worldBody : in.bodies[m.bodyB];
+  ConstraintRow* rows = &rows_[blk.firstRow];
+  const int np = m.pointCount;
+  const double warmRatio = s.warmStarting && m.warmStepSize > 0.0 ? h / m.warmStepSize : 0.0;
+  const Vec3 tangents[2] = {m.tangent1, m.tangent2};
+  const double mus[2] = {surface.mu, surface.mu2 >= 0.0 ? surface.mu2 : surface.mu};
+  const double motions[2] = {surface.motion1, surface.motion2};
+  const double slips[2] = {surface.slip1, surface.slip2};
+  for (int i = 0; i < np; ++i) {
+    const ContactPoint& point = m.points[i];
+    JointPose pose;
+    pose.rA = A.orientation * point.localA;
+    pose.rB = B.orientation * point.localB;
+    pose.pA = A.position + pose.rA;
+    pose.pB = B.position + pose.rB;
+    pose.d = pose.pB - pose.pA;
+
+    // The separation follows the anchors' motion since the manifold was
+    // made (sub-steps do not collide again): separation0 + n.(pB - pA).
+    ConstraintRow& normal = rows[i];
+    normal = ConstraintRow{};
+    directionRow(pose, m.normal, normal);
+    normal.C = point.separation + m.normal.dot(pose.d);
+    normal.slot = static_cast<std::uint8_t>(i);
+    normal.biasKind = RowBias::Speculative;
+    normal.softness = &surface.softness;
+    normal.target = surface.motionN;
+    normal.bounce = surface.restitution;
+    normal.bounceThreshold = surface.restitutionThreshold;
+    normal.slop = surface.slop;
+    normal.maxBias = surface.maxCorrectingVelocity;
+    normal.lo = 0.0;
+    normal.impulse = warmRatio * point.normalImpulse;
+
+    for (int d = 0; d < 2; ++d) {
+      ConstraintRow& t = rows[np + 2 * i + d];
+      t = ConstraintRow{};
+      directionRow(pose, tangents[d], t);
+      t.slot = static_cast<std::uint8_t>(kMaxManifoldPoints + 2 * i + d);
+      t.biasKind = RowBias::Velocity;
+      t.target = motions[d];
+      t.gamma = slips[d] / h;  // force-dependent slip (ODE slip1/2 is a CFM)
+      t.impulse = warmRatio * point.tangentImpulse[d];
+      if (surface.friction == ContactSurface::Friction::Force) {
+        t.lo = -mus[d];  // a force; prepare turns it into an impulse bound
+        t.hi = mus[d];
+      } else {
+        t.frictionOf = static_cast<std::int8_t>(i);
+        t.mu = mus[d];
+        t.conePair = d == 0 && surface.friction == ContactSurface::Friction::Cone;
+      }
+    }
+  }
+  int n = 3 * np;
+  const double resist[3] = {surface.rolling, surface.rolling, surface.spinning};
+  const Vec3 axes[3] = {m.tangent1, m.tangent2, m.normal};
+  for (int k = 0; k < 3; ++k) {
+    if (resist[k] <= 0.0) continue;
+    ConstraintRow& r = rows[n++];
+    r = ConstraintRow{};
+    angularAxisRow(axes[k], 0.0, r);
+    r.slot = static_cast<std::uint8_t>(3 * kMaxManifoldPoints + k);
+    r.biasKind = RowBias::Velocity;
+    r.frictionOf = ConstraintRow::kAllNormals;
+    r.mu = resist[k];
+    r.impulse = warmRatio * m.rollingImpulse[k];
+  }
+  blk.bodyA = solverIndex(m.bodyA);
+  blk.bodyB = solverIndex(m.bodyB);
+  blk.joint = -1;
+  blk.contact = c;
+  blk.unilateral = true;
+  blk.equality = static_cast<std::uint8_t>(np);
+  blk.bounded = static_cast<std::uint8_t>(n - np);
+}
+
+// Bias, CFM and effective masses of a block's rows, then K of its
+// equality (or contact normal) rows and its LDL^T.
+void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk) {
+  const SolverBody& a = bodies_[blk.bodyA];
+  const SolverBody& b = bodies_[blk.bodyB];
+  ConstraintRow* rows = &rows_[blk.firstRow];
+  for (int i = 0; i < blk.rowCount(); ++i) {
+    ConstraintRow& row = rows[i];
+    row.invIangA = a.invI * row.angA;
+    row.invIangB = b.invI * row.angB;
+    const double kDiag = a.invMass * row.linA.squaredNorm() + row.angA.dot(row.invIangA) +
+                         b.invMass * row.linB.squaredNorm() + row.angB.dot(row.invIangB);
+    switch (row.biasKind) {
+      case RowBias::Velocity:  // motors, friction: lo/hi came as forces
+        row.bias = row.biasRelax = -row.target;
+        row.lo *= h;
+        row.hi *= h;
+        break;
+      case RowBias::Speculative: {
+        const double approach = rowVelocity(row, a, b);  // < 0: closing
+        if (row.bounce > 0.0 && approach < -row.bounceThreshold && row.C + approach * h <= 0.0) {
+          // Restitution: leave at bounce times the approach speed; kept
+          // through relax so the rebound survives it.
+          row.bias = row.biasRelax = row.bounce * approach;
+        } else if (row.C > 0.0) {
+          row.bias = row.biasRelax = row.C / h;
+        } else {
+          // Past the stop: soft Baumgarte beyond the slop, capped.
+          const double C = std::min(0.0, row.C + row.slop);
+          row.bias = std::max(row.softness->biasRate(h) * C, -row.maxBias);
+          row.biasRelax = 0.0;
+          row.gamma = row.softness->gamma(h, kDiag);
+        }
+        // A moving surface (ODE motionN) asks for that separating speed.
+        row.bias -= row.target;
+        row.biasRelax -= row.target;
+        break;
+      }
+      case RowBias::Baumgarte:
+        row.bias = row.softness->biasRate(h) * row.C;
+        row.biasRelax = 0.0;
+        row.gamma = row.softness->gamma(h, kDiag);
+        break;
+    }
+    const double k = kDiag + row.gamma;
+    row.effMass = k > 0.0 ? 1.0 / k : 0.0;
+    if (row.frictionOf == ConstraintRow::kNoFriction) {
+      row.impulse = std::clamp(row.impulse, row.lo, row.hi);
+    }
+    row.softness = nullptr;
+  }
+
+  // K = J M^-1 J^T + gamma for the equality rows, factored once here and
+  // reused by every sweep of this (sub-)step.
+  const int ne = blk.equality;
+  const ConstraintRow* eq = rows;
+  for (int r = 0; r < ne; ++r) {
+    for (int col = 0; col <= r; ++col) {
+      blk.ldl(r, col) = a.invMass * eq[r].linA.dot(eq[col].linA) +
+                        eq[r].angA.dot(eq[col].invIangA) +
+                        b.invMass * eq[r].linB.dot(eq[col].linB) + eq[r].angB.dot(eq[col].invIangB);
+    }
+    blk.ldl(r, r) += eq[r].gamma;
+  }
+  ldltFactor(blk.ldl, ne);
+  if (s.blockMode == BlockMode::Block && !blk.unilateral) coupleBoundedRows(blk);
 }
 
 // A bounded row (limit, motor) of a joint acts along its own Jacobian
@@ -383,8 +512,11 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     SolverBody& a = bodies_[blk.bodyA];
     SolverBody& b = bodies_[blk.bodyB];
     ConstraintRow* rows = &rows_[blk.firstRow];
-    ConstraintRow* eq = rows;
     const int ne = blk.equality;
+    if (blk.unilateral) {
+      solveContact(blk, useBias, mode, a, b);
+      continue;
+    }
     if (mode == BlockMode::RowByRow) {
       for (int i = 0; i < blk.rowCount(); ++i)
         solveRow(rows[i], useBias, a, b);
@@ -392,30 +524,103 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     }
     // Limits and motors first, the rigid block last (row.h says why).
     for (int i = blk.boundedBegin(); i < blk.boundedEnd(); ++i) {
-      solveCoupledRow(i, useBias, eq, ne, a, b);
+      solveCoupledRow(i, useBias, rows, ne, a, b);
     }
-
-    // Section 4.3: (J M^-1 J^T + c/h) dP = -(J v + b + gamma P) for the
-    // whole block at once, with the factor from prepare().
-    double dP[6];
-    for (int i = 0; i < ne; ++i) {
-      const double bias = useBias ? eq[i].bias : eq[i].biasRelax;
-      dP[i] = -(rowVelocity(eq[i], a, b) + bias + eq[i].gamma * eq[i].impulse);
-    }
-    ldltSolve(blk.ldl, ne, dP);
-    Vec3 dvA = Vec3::Zero(), dwA = Vec3::Zero(), dvB = Vec3::Zero(), dwB = Vec3::Zero();
-    for (int i = 0; i < ne; ++i) {
-      eq[i].impulse += dP[i];
-      dvA += dP[i] * eq[i].linA;
-      dwA += dP[i] * eq[i].invIangA;
-      dvB += dP[i] * eq[i].linB;
-      dwB += dP[i] * eq[i].invIangB;
-    }
-    a.v += a.invMass * dvA;
-    a.w += dwA;
-    b.v += b.invMass * dvB;
-    b.w += dwB;
+    solveEqualityBlock(blk, useBias, a, b);
   }
+}
+
+// Section 4.3: (J M^-1 J^T + c/h) dP = -(J v + b + gamma P) for the whole
+// equality block at once, with the factor from prepare().
+void Solver::solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b) {
+  ConstraintRow* eq = &rows_[blk.firstRow];
+  const int ne = blk.equality;
+  double dP[6];
+  for (int i = 0; i < ne; ++i) {
+    const double bias = useBias ? eq[i].bias : eq[i].biasRelax;
+    dP[i] = -(rowVelocity(eq[i], a, b) + bias + eq[i].gamma * eq[i].impulse);
+  }
+  ldltSolve(blk.ldl, ne, dP);
+  if (blk.unilateral) {
+    // Accept the block solution only if every accumulated normal impulse
+    // stays >= 0 (all points pushing: the resting case).
+    for (int i = 0; i < ne; ++i) {
+      if (eq[i].impulse + dP[i] < 0.0) return projectedContactSweeps(blk, useBias, a, b);
+    }
+  }
+  Vec3 dvA = Vec3::Zero(), dwA = Vec3::Zero(), dvB = Vec3::Zero(), dwB = Vec3::Zero();
+  for (int i = 0; i < ne; ++i) {
+    eq[i].impulse += dP[i];
+    dvA += dP[i] * eq[i].linA;
+    dwA += dP[i] * eq[i].invIangA;
+    dvB += dP[i] * eq[i].linB;
+    dwB += dP[i] * eq[i].invIangB;
+  }
+  a.v += a.invMass * dvA;
+  a.w += dwA;
+  b.v += b.invMass * dvB;
+  b.w += dwB;
+}
+
+// The normal block when some point would pull: a few projected
+// Gauss-Seidel passes over the points inside the block (each clamped at
+// 0). Exact enumeration of the 2^n - 1 active sets would need a factor per
+// set; with at most four points and the block revisited every sweep, three
+// inner passes reach the same answer at a fraction of the cost.
+void Solver::projectedContactSweeps(ConstraintBlock& blk, bool useBias, SolverBody& a,
+                                    SolverBody& b) {
+  ConstraintRow* eq = &rows_[blk.firstRow];
+  for (int pass = 0; pass < 3; ++pass) {
+    for (int i = 0; i < blk.equality; ++i)
+      solveRow(eq[i], useBias, a, b);
+  }
+}
+
+// Friction first (bounded by the normal impulses as they stand), the
+// normal block last: non-penetration is the most important.
+void Solver::solveContact(ConstraintBlock& blk, bool useBias, BlockMode mode, SolverBody& a,
+                          SolverBody& b) {
+  ConstraintRow* rows = &rows_[blk.firstRow];
+  const int ne = blk.equality;
+  double normalSum = 0.0;
+  for (int i = 0; i < ne; ++i)
+    normalSum += rows[i].impulse;
+  for (int i = blk.equality; i < blk.rowCount(); ++i) {
+    ConstraintRow& row = rows[i];
+    if (row.frictionOf != ConstraintRow::kNoFriction) {
+      const double load =
+          row.frictionOf == ConstraintRow::kAllNormals ? normalSum : rows[row.frictionOf].impulse;
+      row.hi = row.mu * load;
+      row.lo = -row.hi;
+    }
+    if (!row.conePair) {
+      solveRow(row, useBias, a, b);
+      continue;
+    }
+    // Cone friction: both tangents unclamped, then the pair projected onto
+    // the disk of radius mu P_n (no direction preferred, unlike the box).
+    ConstraintRow& other = rows[i + 1];
+    const double radius = row.hi;
+    const double t0 =
+        row.impulse - (rowVelocity(row, a, b) + row.bias + row.gamma * row.impulse) * row.effMass;
+    const double t1 =
+        other.impulse -
+        (rowVelocity(other, a, b) + other.bias + other.gamma * other.impulse) * other.effMass;
+    const double len = std::hypot(t0, t1);
+    const double scale = len > radius ? radius / len : 1.0;
+    const double d0 = t0 * scale - row.impulse, d1 = t1 * scale - other.impulse;
+    row.impulse += d0;
+    other.impulse += d1;
+    applyImpulse(row, d0, a, b);
+    applyImpulse(other, d1, a, b);
+    ++i;
+  }
+  if (mode == BlockMode::RowByRow) {
+    for (int i = 0; i < ne; ++i)
+      solveRow(rows[i], useBias, a, b);
+    return;
+  }
+  solveEqualityBlock(blk, useBias, a, b);
 }
 
 void Solver::islandResidual(int island, double& max, double& sumSq, int& count) const {
@@ -492,8 +697,25 @@ void Solver::integratePositions(const StepInput& in, const SolverSettings& s, do
   }
 }
 
-void Solver::relax(const SolverSettings& s) {
+void Solver::relax(const SolverSettings& s, double h) {
   if (s.relaxIterations <= 0) return;
+  // The bodies have moved since prepare(): a one-sided row's gap is now
+  // C + h J v (to first order, with the velocity they moved with). Relax
+  // must allow only what is left of it, or it lets a contact close a gap
+  // the position update already closed (Box2D recomputes the separation
+  // from the bodies' motion in each stage for the same reason).
+  for (const ConstraintBlock& blk : blocks_) {
+    const SolverBody& a = bodies_[blk.bodyA];
+    const SolverBody& b = bodies_[blk.bodyB];
+    ConstraintRow* rows = &rows_[blk.firstRow];
+    for (int i = 0; i < blk.rowCount(); ++i) {
+      ConstraintRow& row = rows[i];
+      if (row.biasKind != RowBias::Speculative || row.biasRelax < -row.target)
+        continue;  // bouncing
+      const double gap = row.C + h * rowVelocity(row, a, b);
+      row.biasRelax = std::max(gap, 0.0) / h - row.target;
+    }
+  }
   for (int it = 0; it < s.relaxIterations; ++it) {
     for (int island = 0; island < islandCount_; ++island)
       sweep(island, false, s.blockMode);
@@ -511,8 +733,12 @@ void Solver::storeImpulses(const StepInput& in, double h) {
     }
   }
   for (const ConstraintBlock& blk : blocks_) {
-    Joint& joint = in.joints[blk.joint];
     const ConstraintRow* rows = &rows_[blk.firstRow];
+    if (blk.contact >= 0) {
+      storeContactImpulses(in.contacts[blk.contact], rows, blk.rowCount(), h);
+      continue;
+    }
+    Joint& joint = in.joints[blk.joint];
     joint.warmSlots = 0;
     for (int i = 0; i < blk.rowCount(); ++i) {
       joint.warmImpulse[rows[i].slot] = rows[i].impulse;
@@ -523,9 +749,29 @@ void Solver::storeImpulses(const StepInput& in, double h) {
   }
 }
 
+void Solver::storeContactImpulses(ContactManifold& m, const ConstraintRow* rows, int n, double h) {
+  for (int i = 0; i < n; ++i) {
+    const int slot = rows[i].slot;
+    const double P = rows[i].impulse;
+    if (slot < kMaxManifoldPoints) {
+      m.points[slot].normalImpulse = P;
+      m.points[slot].stepNormalImpulse += P;
+    } else if (slot < 3 * kMaxManifoldPoints) {
+      ContactPoint& point = m.points[(slot - kMaxManifoldPoints) / 2];
+      const int d = (slot - kMaxManifoldPoints) % 2;
+      point.tangentImpulse[d] = P;
+      point.stepTangentImpulse[d] += P;
+    } else {
+      m.rollingImpulse[slot - 3 * kMaxManifoldPoints] = P;
+    }
+  }
+  m.warmStepSize = h;
+}
+
 void Solver::finish(const StepInput& in, StepStats& stats) {
   const double h = in.h;
   for (const ConstraintBlock& blk : blocks_) {
+    if (blk.joint < 0) continue;
     Joint& joint = in.joints[blk.joint];
     // Breakable joints: the force and torque carried over this step.
     const JointCommon& c = common(joint.desc);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/body/body.h"
+#include "core/constraints/contact.h"
 #include "core/constraints/joint.h"
 #include "core/constraints/parts/row_writer.h"
 #include "core/constraints/row.h"
@@ -19,7 +20,8 @@ namespace blockstep {
 struct StepInput {
   std::vector<Body>& bodies;
   std::vector<Joint>& joints;
-  const Body& worldBody;  // the static frame behind kWorldBody
+  std::vector<ContactManifold>& contacts;  // this step's; impulses are written back
+  const Body& worldBody;                   // the static frame behind kWorldBody
   Vec3 gravity;
   double h;  // the whole step, s
 };
@@ -50,10 +52,20 @@ class Solver {
   void buildIslands(const StepInput& in);
   void integrateVelocities(const StepInput& in, const SolverSettings& s, double h);
   void prepare(const StepInput& in, const SolverSettings& s, double h);
+  void buildJointBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t j,
+                       ConstraintBlock& blk);
+  void buildContactBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t c,
+                         ConstraintBlock& blk);
+  void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk);
+  void solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b);
+  void projectedContactSweeps(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b);
+  void solveContact(ConstraintBlock& blk, bool useBias, BlockMode mode, SolverBody& a,
+                    SolverBody& b);
+  static void storeContactImpulses(ContactManifold& m, const ConstraintRow* rows, int n, double h);
   void warmStart();
   int solve(const SolverSettings& s, int substep, double deadline, StepStats& stats);
   void integratePositions(const StepInput& in, const SolverSettings& s, double h);
-  void relax(const SolverSettings& s);
+  void relax(const SolverSettings& s, double h);
   void storeImpulses(const StepInput& in, double h);
   void finish(const StepInput& in, StepStats& stats);
 
@@ -79,16 +91,20 @@ class Solver {
     double effMass;
   };
   std::vector<BoundedCoupling> coupling_;
-  std::vector<std::int32_t> jointOfBlock_;
+  // A block's source: a joint index (>= 0) or a contact manifold, encoded
+  // as -(index + 1).
+  static std::int32_t contactSource(std::int32_t c) { return -(c + 1); }
+  static std::int32_t contactIndex(std::int32_t source) { return -source - 1; }
+  std::vector<std::int32_t> sourceOfBlock_;
   // Islands: blocks are ordered by island, island i owning blocks
   // [islandStart_[i], islandStart_[i + 1]).
   std::vector<std::int32_t> parent_;
   std::vector<std::int32_t> islandOfRoot_;
-  std::vector<std::int32_t> jointIsland_;
+  std::vector<std::int32_t> sourceIsland_;
   std::vector<std::int32_t> fill_;
   std::vector<std::int32_t> islandStart_;
   std::vector<std::uint8_t> islandActive_;
-  std::vector<std::int32_t> activeJoints_;
+  std::vector<std::int32_t> active_;
   int islandCount_ = 0;
   int rowCount_ = 0;
   std::int32_t dummy_ = 0;

@@ -1,5 +1,6 @@
 #include "core/world/world.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
@@ -124,6 +125,9 @@ int World::bodyCount() const {
 
 void World::destroyBody(BodyId id) {
   mutableBody(id);
+  for (Shape& shape : shapes_) {
+    if (shape.alive && shape.body == id) shape.alive = false;
+  }
   for (JointId j = 0; j < static_cast<JointId>(joints_.size()); ++j) {
     if (!joints_[j].alive) continue;
     const JointCommon& c = common(joints_[j].desc);
@@ -390,8 +394,16 @@ void World::step(double h) {
   stats_.residuals.reserve(static_cast<std::size_t>(settings_.substeps) * settings_.iterations);
   stats_.brokenJoints.reserve(joints_.size());
 
-  solver_.step(StepInput{bodies_, joints_, worldBody_, gravity_, h}, settings_, stats_);
+  collide();
+  prepareContacts();
+  solver_.step(StepInput{bodies_, joints_, contacts_, worldBody_, gravity_, h}, settings_, stats_);
   lastStep_ = h;
+  previousContacts_.swap(contacts_);
+  contacts_.clear();
+  std::sort(previousContacts_.begin(), previousContacts_.end(),
+            [](const ContactManifold& x, const ContactManifold& y) {
+              return bodyPairKey(x.bodyA, x.bodyB) < bodyPairKey(y.bodyA, y.bodyB);
+            });
 
   for (BodyId i = 0; i < static_cast<BodyId>(bodies_.size()); ++i) {
     const Body& b = bodies_[i];
@@ -407,7 +419,9 @@ void World::step(double h) {
       bodies_[k].angularVelocity = saved_[k].w;
     }
     for (Joint& j : joints_)
-      j.warmImpulse.fill(0.0);
+      j.warmSlots = 0;
+    contacts_.clear();
+    previousContacts_.clear();
     lastStep_ = 0.0;
     throw Error("the step produced a non-finite state at " + bodyName(i) +
                 "; the world was restored to before the step (check masses, inertia and joint "

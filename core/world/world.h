@@ -15,6 +15,9 @@
 #include <vector>
 
 #include "core/body/body.h"
+#include "core/collision/collide.h"
+#include "core/collision/shapes.h"
+#include "core/constraints/contact.h"
 #include "core/constraints/joint.h"
 #include "core/constraints/joint_desc.h"
 #include "core/solver/settings.h"
@@ -65,6 +68,20 @@ class World {
   // How far the joint is from satisfied in the current poses.
   JointError jointError(JointId id) const;
 
+  // Shapes and contacts. Shapes on kWorldBody are static world geometry
+  // (their local pose is their world pose). Contacts found by collision,
+  // and those given by addContact (for the next step only), are solved
+  // with the joints; contacts() lists the last step's with their impulses,
+  // sorted by body pair.
+  ShapeId addShape(const Shape& shape);
+  void removeShape(ShapeId id);
+  void addContact(const ContactManifold& manifold);
+  const std::vector<ContactManifold>& contacts() const { return previousContacts_; }
+  CollisionSettings& collisionSettings() { return collision_; }
+  // Contact points of consecutive steps closer than this (m) are the same
+  // point for warm starting when the caller gives no feature ids.
+  void setContactMatchDistance(double d);
+
   // World settings.
   void setGravity(const Vec3& g);
   const Vec3& gravity() const { return gravity_; }
@@ -86,6 +103,8 @@ class World {
   const Body& endpoint(BodyId id) const;
   void validateSettings(const SolverSettings& s) const;
   void checkStateBeforeStep(double h) const;
+  void collide();
+  void prepareContacts();
 
   struct Saved {
     Vec3 x, v, w;
@@ -97,6 +116,12 @@ class World {
   std::vector<BodyId> freeBodies_;
   std::vector<JointId> freeJoints_;
   std::vector<Saved> saved_;
+  std::vector<Shape> shapes_;
+  std::vector<ContactManifold> contacts_;          // this step's
+  std::vector<ContactManifold> previousContacts_;  // the last step's, sorted by body pair
+  std::vector<std::uint64_t> jointedPairs_;
+  CollisionSettings collision_;
+  double matchDistance_ = 0.02;
   Body worldBody_;
   Vec3 gravity_ = Vec3(0.0, 0.0, -9.81);
   SolverSettings settings_;

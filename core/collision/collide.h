@@ -1,0 +1,47 @@
+// The collide stage: contact manifolds for every touching pair of shapes.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/collision/shapes.h"
+#include "core/constraints/contact.h"
+
+namespace blockstep {
+
+struct CollisionSettings {
+  // Pairs closer than this get speculative contact points (m).
+  double margin = 0.02;
+  // Bodies joined by a joint collide only when this is set.
+  bool collideConnected = false;
+  // Every manifold starts from this surface; friction mixes as
+  // sqrt(muA muB) and restitution as max(eA, eB) of the two shapes.
+  // Rigid normals (CFM 0: ODE's CFM is a compliance in m/N, so heavy
+  // bodies would sink by CFM times their load; a 100 kg box on a 1 kg one
+  // sank 2.5 mm more with ODE's 1e-5) and a 5 mm slop so resting contacts
+  // do not jitter. Contacts given through World::addContact keep theirs.
+  ContactSurface surface = defaultSurface();
+
+  static ContactSurface defaultSurface() {
+    ContactSurface s;
+    s.softness = Softness::erpCfm(0.2, 0.0);
+    s.slop = 0.005;
+    s.restitutionThreshold = 0.2;
+    return s;
+  }
+};
+
+// Appends the manifolds of all touching pairs to `out`. `jointed` holds
+// sorted keys (bodyPairKey) of pairs that do not collide. Broad phase:
+// bounding spheres, all pairs (a tree comes with the collision module).
+void collideShapes(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
+                   const CollisionSettings& settings, const std::vector<std::uint64_t>& jointed,
+                   std::vector<ContactManifold>& out);
+
+inline std::uint64_t bodyPairKey(BodyId a, BodyId b) {
+  const auto lo = static_cast<std::uint32_t>(std::min(a, b));
+  const auto hi = static_cast<std::uint32_t>(std::max(a, b));
+  return (static_cast<std::uint64_t>(lo) << 32) | hi;
+}
+
+}  // namespace blockstep

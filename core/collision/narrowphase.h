@@ -1,0 +1,27 @@
+// Contact points between two posed shapes. Each function fills `m`
+// (normal from the first shape toward the second, up to four points with
+// their separations and the world positions midway between the surfaces)
+// and returns the number of points; points farther apart than `margin`
+// are left out (closer ones are speculative: they only stop approach).
+#pragma once
+
+#include "core/collision/shapes.h"
+#include "core/constraints/contact.h"
+
+namespace blockstep {
+
+int collideSpherePlane(const Shape& plane, const Shape& sphere, const ShapePose& ps, double margin,
+                       ContactManifold& m);
+int collideBoxPlane(const Shape& plane, const Shape& box, const ShapePose& pb, double margin,
+                    ContactManifold& m);
+int collideSpheres(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,
+                   double margin, ContactManifold& m);
+int collideBoxSphere(const Shape& box, const ShapePose& pb, const Shape& sphere,
+                     const ShapePose& ps, double margin, ContactManifold& m);
+// Separating-axis test over the 15 axes; face contacts clip the incident
+// face against the reference face's sides (up to 8 points, reduced to 4),
+// edge contacts give the closest points of the two edges.
+int collideBoxes(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,
+                 double margin, ContactManifold& m);
+
+}  // namespace blockstep

@@ -1,0 +1,269 @@
+// Contacts (section 4.2 rows, section 4.3 clamping): resting, friction
+// thresholds, restitution, mass ratios, warm starting, caller contacts.
+#include <cmath>
+
+#include "support/test_world.h"
+
+namespace blockstep {
+namespace {
+
+using test::boxBody;
+
+BodyId addBox(World& world, const Vec3& position, double mass, const Vec3& half,
+              double friction = 0.6, const Quat& q = Quat::Identity()) {
+  BodyDesc d = boxBody(position, mass, 2.0 * half);
+  d.orientation = q;
+  const BodyId id = world.createBody(d);
+  Shape s = Shape::box(id, half);
+  s.friction = friction;
+  world.addShape(s);
+  return id;
+}
+
+double rotationDegrees(const Quat& q) {
+  return 2.0 * std::acos(std::min(1.0, std::abs(q.w()))) * 180.0 / kPi;
+}
+
+TEST(Contact, BoxRestsOnAPlane) {
+  World world;  // default settings
+  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  const BodyId box = addBox(world, Vec3(0, 0, 0.25), 1.0, Vec3(0.25, 0.25, 0.25));
+  const Vec3 start = world.body(box).position;
+  double drift = 0.0, rotation = 0.0;
+  for (int i = 0; i < 600; ++i) {  // 10 s
+    world.step(1.0 / 60.0);
+    drift = std::max(drift, (world.body(box).position - start).norm());
+    rotation = std::max(rotation, rotationDegrees(world.body(box).orientation));
+  }
+  EXPECT_LT(drift, 1e-3);
+  EXPECT_LT(rotation, 0.1);
+  ASSERT_EQ(world.contacts().size(), 1u);
+  EXPECT_EQ(world.contacts()[0].pointCount, 4);
+  double load = 0.0;
+  for (int i = 0; i < 4; ++i)
+    load += world.contacts()[0].points[i].stepNormalImpulse;
+  EXPECT_NEAR(load * 60.0, 9.81, 0.01 * 9.81) << "the contact carries the weight";
+}
+
+// A box on a plane tilted by `angle` about x (gravity stays -z).
+struct Incline {
+  World world;
+  BodyId box;
+  Vec3 downhill;
+};
+
+void makeIncline(Incline& in, double angle, double mu, ContactSurface::Friction model) {
+  // Warm started: cold, every step's friction starts from zero and lets
+  // the box creep a little before it catches (5.7 mm in 10 s).
+  SolverSettings s = SolverSettings::paper(10);
+  s.warmStarting = true;
+  in.world.setSettings(s);
+  const Quat tilt(Eigen::AngleAxisd(angle, Vec3::UnitX()));
+  const Vec3 n = tilt * Vec3::UnitZ();
+  in.downhill = tilt * Vec3(0, 1, 0);  // -y tilted: gravity pulls along +y' when angle > 0
+  if (in.downhill.z() > 0) in.downhill = -in.downhill;
+  in.world.collisionSettings().surface.friction = model;
+  Shape plane = Shape::plane(n, 0.0);
+  plane.friction = mu;
+  in.world.addShape(plane);
+  in.box = addBox(in.world, 0.25 * n, 1.0, Vec3(0.25, 0.25, 0.25), mu, tilt);
+}
+
+TEST(Contact, BoxStaysBelowTheFrictionAngleAndSlidesAboveIt) {
+  const double mu = 0.5;  // friction angle atan(0.5) = 26.6 degrees
+  for (auto model : {ContactSurface::Friction::Box, ContactSurface::Friction::Cone}) {
+    SCOPED_TRACE(model == ContactSurface::Friction::Box ? "box friction" : "cone friction");
+    {
+      Incline in;
+      makeIncline(in, 0.8 * std::atan(mu), mu, model);
+      const Vec3 start = in.world.body(in.box).position;
+      test::stepN(in.world, 600, 1.0 / 60.0);
+      EXPECT_LT((in.world.body(in.box).position - start).norm(), 1e-3) << "creep over 10 s";
+    }
+    {
+      const double angle = 0.6;  // 34.4 degrees
+      Incline in;
+      makeIncline(in, angle, mu, model);
+      test::stepN(in.world, 30, 1.0 / 60.0);  // let it start sliding
+      const double v0 = in.world.body(in.box).linearVelocity.dot(in.downhill);
+      test::stepN(in.world, 60, 1.0 / 60.0);
+      const double v1 = in.world.body(in.box).linearVelocity.dot(in.downhill);
+      const double expected = 9.81 * (std::sin(angle) - mu * std::cos(angle));
+      EXPECT_NEAR(v1 - v0, expected, 0.02 * expected) << "acceleration over 1 s";
+    }
+  }
+}
+
+TEST(Contact, ConeFrictionHasNoPreferredDirection) {
+  // Pushed diagonally with more than the friction limit, a box on cone
+  // friction slides along the push; box friction (each axis clamped
+  // alone) turns it toward the nearest axis diagonal.
+  auto slideDirection = [](ContactSurface::Friction model, const Vec3& push) {
+    World world;
+    world.collisionSettings().surface.friction = model;
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    const BodyId box = addBox(world, Vec3(0, 0, 0.25), 1.0, Vec3(0.25, 0.25, 0.25), 0.5);
+    for (int i = 0; i < 60; ++i) {
+      world.addForce(box, push);
+      world.step(1.0 / 60.0);
+    }
+    return Vec3(world.body(box).linearVelocity.normalized());
+  };
+  const Vec3 push = 8.0 * Vec3(std::cos(0.3), std::sin(0.3), 0.0);
+  const Vec3 cone = slideDirection(ContactSurface::Friction::Cone, push);
+  EXPECT_GT(cone.dot(push.normalized()), 0.9999);
+}
+
+TEST(Contact, RestitutionBouncesToESquaredTimesTheHeight) {
+  for (double e : {0.5, 0.8}) {
+    World world;
+    SolverSettings s = SolverSettings::paper(10);
+    world.setSettings(s);
+    world.collisionSettings().surface.restitutionThreshold = 0.5;
+    Shape plane = Shape::plane(Vec3::UnitZ(), 0.0);
+    plane.restitution = e;
+    world.addShape(plane);
+    const double r = 0.1, drop = 1.0;
+    const BodyId ball = world.createBody(test::sphereBody(Vec3(0, 0, r + drop), 1.0, r));
+    world.addShape(Shape::sphere(ball, r));
+    const double h = 1.0 / 600.0;
+    bool bounced = false;
+    double apex = 0.0;
+    for (int i = 0; i < 2400; ++i) {
+      world.step(h);
+      const double vz = world.body(ball).linearVelocity.z();
+      if (!bounced && vz > 0.0) bounced = true;
+      if (bounced) apex = std::max(apex, world.body(ball).position.z() - r);
+      if (bounced && vz < 0.0) break;
+    }
+    EXPECT_NEAR(apex, e * e * drop, 0.03 * e * e * drop) << "e = " << e;
+  }
+}
+
+TEST(Contact, SlowImpactsBelowTheThresholdDoNotBounce) {
+  World world;
+  world.collisionSettings().surface.restitutionThreshold = 1.0;  // m/s
+  Shape plane = Shape::plane(Vec3::UnitZ(), 0.0);
+  plane.restitution = 0.9;
+  world.addShape(plane);
+  const double r = 0.1;
+  const BodyId ball = world.createBody(test::sphereBody(Vec3(0, 0, r + 0.03), 1.0, r));
+  world.addShape(Shape::sphere(ball, r));  // lands at about 0.77 m/s
+  test::stepN(world, 120, 1.0 / 60.0);
+  EXPECT_NEAR(world.body(ball).position.z(), r, 1e-3);
+  EXPECT_LT(std::abs(world.body(ball).linearVelocity.z()), 1e-3);
+}
+
+TEST(Contact, HeavyOnLightAndLightUnderHeavyDoNotSink) {
+  // A 100 kg box on a 1 kg box, and a 100 kg plank resting on two 1 kg
+  // boxes: every contact's penetration stays within the slop + 1 mm (the
+  // plank sits on two such contacts: legs into the ground, plank into legs).
+  // A 100:1 mass ratio needs more than one sweep per sub-step: with one,
+  // the light box rocks up to 18 mm into the ground.
+  World world;
+  SolverSettings settings = SolverSettings::subStepped(8);
+  settings.iterations = 4;
+  world.setSettings(settings);
+  world.collisionSettings().surface.slop = 0.005;
+  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  const BodyId light = addBox(world, Vec3(0, 0, 0.25), 1.0, Vec3(0.25, 0.25, 0.25));
+  const BodyId heavy = addBox(world, Vec3(0, 0, 0.75), 100.0, Vec3(0.25, 0.25, 0.25));
+  const BodyId legA = addBox(world, Vec3(3, -1, 0.25), 1.0, Vec3(0.25, 0.25, 0.25));
+  const BodyId legB = addBox(world, Vec3(3, 1, 0.25), 1.0, Vec3(0.25, 0.25, 0.25));
+  const BodyId plank = addBox(world, Vec3(3, 0, 0.6), 100.0, Vec3(0.3, 1.5, 0.1));
+  double worst = 0.0;
+  for (int i = 0; i < 300; ++i) {
+    world.step(1.0 / 60.0);
+    if (i < 60) continue;  // after the landing of the 100 kg loads
+    for (const ContactManifold& m : world.contacts()) {
+      for (int k = 0; k < m.pointCount; ++k)
+        worst = std::max(worst, -m.points[k].separation);
+    }
+  }
+  EXPECT_LT(worst, 0.005 + 1e-3);
+  EXPECT_NEAR(world.body(heavy).position.z(), 0.75, 2 * (0.005 + 1e-3));
+  EXPECT_NEAR(world.body(plank).position.z(), 0.6, 2 * (0.005 + 1e-3));
+  EXPECT_NEAR(world.body(light).position.z(), 0.25, 0.005 + 1e-3);
+  EXPECT_NEAR(world.body(legA).position.z(), 0.25, 0.005 + 1e-3);
+  EXPECT_NEAR(world.body(legB).position.z(), 0.25, 0.005 + 1e-3);
+}
+
+TEST(Contact, WarmStartingCutsTheSweepsAStackNeeds) {
+  auto sweeps = [](bool warm) {
+    World world;
+    SolverSettings s = SolverSettings::paper(200);
+    s.tolerance = 1e-4;
+    s.warmStarting = warm;
+    world.setSettings(s);
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    for (int i = 0; i < 2; ++i)
+      addBox(world, Vec3(0, 0, 0.25 + 0.5 * i), 1.0, Vec3(0.25, 0.25, 0.25));
+    int total = 0;
+    for (int f = 0; f < 120; ++f) {
+      world.step(1.0 / 60.0);
+      if (f >= 60) total += world.lastStepStats().iterations;
+    }
+    return total;
+  };
+  const int warm = sweeps(true), cold = sweeps(false);
+  std::printf("2-box stack, sweeps over 60 frames to 1e-4: warm %d, cold %d\n", warm, cold);
+  EXPECT_LT(warm, cold / 2);
+}
+
+TEST(Contact, CallerGivenContactsHoldABody) {
+  // The ODE adapter's path: no shapes, a manifold given every step.
+  World world;
+  const BodyId box = world.createBody(boxBody(Vec3(0, 0, 0.5), 2.0, Vec3(1, 1, 1)));
+  for (int i = 0; i < 120; ++i) {
+    const Body& b = world.body(box);
+    ContactManifold m;
+    m.bodyA = kWorldBody;
+    m.bodyB = box;
+    m.normal = Vec3::UnitZ();
+    m.pointCount = 4;
+    for (int k = 0; k < 4; ++k) {
+      const Vec3 corner = b.worldPoint(Vec3(k & 1 ? 0.5 : -0.5, k & 2 ? 0.5 : -0.5, -0.5));
+      m.points[k].position = Vec3(corner.x(), corner.y(), 0.5 * corner.z());
+      m.points[k].separation = corner.z();
+      m.points[k].feature = static_cast<std::uint32_t>(k + 1);
+    }
+    world.addContact(m);
+    world.step(1.0 / 60.0);
+  }
+  EXPECT_NEAR(world.body(box).position.z(), 0.5, 1e-3);
+  double load = 0.0;
+  for (int k = 0; k < 4; ++k)
+    load += world.contacts()[0].points[k].stepNormalImpulse;
+  EXPECT_NEAR(load * 60.0, 2.0 * 9.81, 0.01 * 2.0 * 9.81);
+}
+
+TEST(Contact, BadContactsAndShapesAreRefused) {
+  World world;
+  const BodyId box = world.createBody(boxBody(Vec3(0, 0, 0.5), 1.0, Vec3(1, 1, 1)));
+  ContactManifold m;
+  m.bodyB = box;
+  m.pointCount = 0;
+  EXPECT_THROW(world.addContact(m), Error);
+  m.pointCount = 1;
+  m.normal = Vec3::Zero();
+  EXPECT_THROW(world.addContact(m), Error);
+  m.normal = Vec3::UnitZ();
+  m.points[0].separation = NAN;
+  EXPECT_THROW(world.addContact(m), Error);
+  m.points[0].separation = 0.0;
+  m.surface.restitution = 2.0;
+  EXPECT_THROW(world.addContact(m), Error);
+  m.surface.restitution = 0.0;
+  m.bodyA = box;
+  EXPECT_THROW(world.addContact(m), Error);
+  EXPECT_THROW(world.addShape(Shape::sphere(box, -1.0)), Error);
+  EXPECT_THROW(world.addShape(Shape::box(box, Vec3(0.1, 0.0, 0.1))), Error);
+  EXPECT_THROW(world.addShape(Shape::plane(Vec3::Zero(), 0.0)), Error);
+  EXPECT_THROW(world.addShape(Shape::sphere(99, 1.0)), Error);
+  world.step(1.0 / 60.0);  // nothing was added: the box falls freely
+  EXPECT_TRUE(world.contacts().empty());
+  EXPECT_LT(world.body(box).linearVelocity.z(), 0.0);
+}
+
+}  // namespace
+}  // namespace blockstep
