@@ -16,7 +16,7 @@ void runScene(benchmark::State& state, const char* name, SolverSettings settings
   scenes::Scene scene;
   scenes::makeScene(name, scene);
   scene.world.setSettings(settings);
-  double worstSep = 0.0, worstAng = 0.0;
+  double worstSep = 0.0, worstAng = 0.0, worstDrift = 0.0;
   int frame = 0;
   for (auto _ : state) {
     if (frame == scene.frames) {  // start the scene over, outside the timing
@@ -33,10 +33,12 @@ void runScene(benchmark::State& state, const char* name, SolverSettings settings
     const scenes::Quality q = scenes::measure(scene);
     worstSep = std::max(worstSep, q.maxSeparation);
     worstAng = std::max(worstAng, q.maxAngle);
+    worstDrift = std::max(worstDrift, q.drift);
     state.ResumeTiming();
   }
   state.counters["max_sep_mm"] = 1e3 * worstSep;
   state.counters["max_ang_deg"] = worstAng * 180.0 / kPi;
+  state.counters["drift_mm"] = 1e3 * worstDrift;
 }
 
 #define SCENE_BENCH(scene)                                                               \
@@ -54,6 +56,8 @@ SCENE_BENCH(chain)
 SCENE_BENCH(chain_swing)
 SCENE_BENCH(cloth32)
 SCENE_BENCH(softcube)
+SCENE_BENCH(stack)
+SCENE_BENCH(pyramid)
 
 }  // namespace
 

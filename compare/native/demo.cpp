@@ -55,8 +55,8 @@ int main(int argc, char** argv) {
       {"substep 20", SolverSettings::subStepped(20)},
   };
 
-  std::printf("%-14s %-12s %8s %10s %14s %12s\n", "scene", "solver", "frames", "ms/frame",
-              "max sep (mm)", "max ang (deg)");
+  std::printf("%-14s %-12s %8s %10s %14s %12s %11s %10s\n", "scene", "solver", "frames", "ms/frame",
+              "max sep (mm)", "max ang (deg)", "drift (mm)", "pen (mm)");
   for (const std::string& name : names) {
     for (const Mode& mode : modes) {
       scenes::Scene scene;
@@ -68,7 +68,8 @@ int main(int argc, char** argv) {
       }
       scene.world.setSettings(mode.settings);
       const int n = frames > 0 ? frames : scene.frames;
-      double worstSep = 0.0, worstAng = 0.0, solveSeconds = 0.0;
+      double worstSep = 0.0, worstAng = 0.0, worstDrift = 0.0, worstPen = 0.0;
+      double solveSeconds = 0.0;
       bool failed = false;
       for (int f = 0; f < n && !failed; ++f) {
         try {
@@ -81,10 +82,12 @@ int main(int argc, char** argv) {
         const scenes::Quality q = scenes::measure(scene);
         worstSep = std::max(worstSep, q.maxSeparation);
         worstAng = std::max(worstAng, q.maxAngle);
+        worstDrift = std::max(worstDrift, q.drift);
+        worstPen = std::max(worstPen, q.penetration);
       }
-      std::printf("%-14s %-12s %8d %10.3f %14.2f %12.2f%s\n", name.c_str(), mode.name, n,
-                  1e3 * solveSeconds / n, 1e3 * worstSep, worstAng * 180.0 / kPi,
-                  failed ? "  FAILED" : "");
+      std::printf("%-14s %-12s %8d %10.3f %14.2f %12.2f %11.2f %10.2f%s\n", name.c_str(), mode.name,
+                  n, 1e3 * solveSeconds / n, 1e3 * worstSep, worstAng * 180.0 / kPi,
+                  1e3 * worstDrift, 1e3 * worstPen, failed ? "  FAILED" : "");
     }
   }
   return 0;

@@ -21,8 +21,9 @@ BodyId addBody(World& w, const Vec3& position, const MassProperties& m,
 }  // namespace
 
 const std::vector<std::string>& sceneNames() {
-  static const std::vector<std::string> names = {"ragdoll", "chain",    "chain_swing",  "cloth16",
-                                                 "cloth32", "softcube", "softcube_ball"};
+  static const std::vector<std::string> names = {"ragdoll",       "chain",   "chain_swing",
+                                                 "cloth16",       "cloth32", "softcube",
+                                                 "softcube_ball", "stack",   "pyramid"};
   return names;
 }
 
@@ -34,6 +35,8 @@ void makeScene(const std::string& name, Scene& s) {
   if (name == "cloth32") return cloth(s, 32);
   if (name == "softcube") return softcube(s, false);
   if (name == "softcube_ball") return softcube(s, true);
+  if (name == "stack") return stack(s);
+  if (name == "pyramid") return pyramid(s, 20);
   throw Error("unknown scene '" + name + "'");
 }
 
@@ -177,8 +180,49 @@ void softcube(Scene& s, bool ballJoints) {
   s.joints.push_back(w.createJoint(pin));
 }
 
+namespace {
+
+BodyId addGroundBox(World& w, const Vec3& position) {
+  const MassProperties m = boxMass(1.0, Vec3(0.5, 0.5, 0.5));
+  const BodyId id = addBody(w, position, m);
+  w.addShape(Shape::box(id, Vec3(0.25, 0.25, 0.25)));
+  return id;
+}
+
+}  // namespace
+
+void stack(Scene& s) {
+  s.name = "stack";
+  s.world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  for (int i = 0; i < 10; ++i)
+    s.tracked = addGroundBox(s.world, Vec3(0, 0, 0.25 + 0.5 * i));
+  s.trackedStart = s.world.body(s.tracked).position;
+}
+
+void pyramid(Scene& s, int base) {
+  s.name = "pyramid";
+  s.world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  for (int row = 0; row < base; ++row) {
+    const int count = base - row;
+    for (int k = 0; k < count; ++k) {
+      // Each row sits half a spacing in from the one below.
+      const double x = (k - 0.5 * (count - 1)) * 0.525;
+      s.tracked = addGroundBox(s.world, Vec3(x, 0, 0.25 + 0.5 * row));
+    }
+  }
+  s.trackedStart = s.world.body(s.tracked).position;
+}
+
 Quality measure(const Scene& s) {
   Quality q;
+  if (s.tracked != kWorldBody) {
+    q.drift = (s.world.body(s.tracked).position - s.trackedStart).norm();
+  }
+  for (const ContactManifold& m : s.world.contacts()) {
+    for (int i = 0; i < m.pointCount; ++i) {
+      q.penetration = std::max(q.penetration, -m.points[i].separation);
+    }
+  }
   for (JointId j : s.joints) {
     const JointError e = s.world.jointError(j);
     q.maxSeparation = std::max(q.maxSeparation, e.linear);
