@@ -2,6 +2,7 @@
 // thresholds, restitution, mass ratios, warm starting, caller contacts.
 #include <cmath>
 
+#include "compare/native/scenes.h"
 #include "support/test_world.h"
 
 namespace blockstep {
@@ -210,24 +211,29 @@ TEST(Contact, WarmStartingCutsTheSweepsAStackNeeds) {
   EXPECT_LT(warm, cold / 2);
 }
 
+// The manifold a caller (the ODE adapter) would give for a box of half
+// size `half` standing on the plane z = 0: its four bottom corners.
+ContactManifold groundContact(const World& world, BodyId box, double half) {
+  ContactManifold m;
+  m.bodyB = box;
+  m.normal = Vec3::UnitZ();
+  m.pointCount = 4;
+  const Body& b = world.body(box);
+  for (int k = 0; k < 4; ++k) {
+    const Vec3 corner = b.worldPoint(Vec3(k & 1 ? half : -half, k & 2 ? half : -half, -half));
+    m.points[k].position = Vec3(corner.x(), corner.y(), 0.5 * corner.z());
+    m.points[k].separation = corner.z();
+    m.points[k].feature = static_cast<std::uint32_t>(k + 1);
+  }
+  return m;
+}
+
 TEST(Contact, CallerGivenContactsHoldABody) {
   // The ODE adapter's path: no shapes, a manifold given every step.
   World world;
   const BodyId box = world.createBody(boxBody(Vec3(0, 0, 0.5), 2.0, Vec3(1, 1, 1)));
   for (int i = 0; i < 120; ++i) {
-    const Body& b = world.body(box);
-    ContactManifold m;
-    m.bodyA = kWorldBody;
-    m.bodyB = box;
-    m.normal = Vec3::UnitZ();
-    m.pointCount = 4;
-    for (int k = 0; k < 4; ++k) {
-      const Vec3 corner = b.worldPoint(Vec3(k & 1 ? 0.5 : -0.5, k & 2 ? 0.5 : -0.5, -0.5));
-      m.points[k].position = Vec3(corner.x(), corner.y(), 0.5 * corner.z());
-      m.points[k].separation = corner.z();
-      m.points[k].feature = static_cast<std::uint32_t>(k + 1);
-    }
-    world.addContact(m);
+    world.addContact(groundContact(world, box, 0.5));
     world.step(1.0 / 60.0);
   }
   EXPECT_NEAR(world.body(box).position.z(), 0.5, 1e-3);
@@ -263,6 +269,92 @@ TEST(Contact, BadContactsAndShapesAreRefused) {
   world.step(1.0 / 60.0);  // nothing was added: the box falls freely
   EXPECT_TRUE(world.contacts().empty());
   EXPECT_LT(world.body(box).linearVelocity.z(), 0.0);
+}
+
+TEST(Contact, ConveyorSurfaceCarriesTheBox) {
+  // ODE's motion1: the surface moves at 1 m/s along the first friction
+  // direction; a box on it is carried at that speed.
+  World world;
+  world.setSettings(SolverSettings::subStepped(4));
+  const BodyId box = world.createBody(boxBody(Vec3(0, 0, 0.25), 1.0, Vec3(0.5, 0.5, 0.5)));
+  for (int i = 0; i < 120; ++i) {
+    ContactManifold m = groundContact(world, box, 0.25);
+    m.surface.frictionDir1 = Vec3::UnitX();
+    m.surface.motion1 = 1.0;
+    world.addContact(m);
+    world.step(1.0 / 60.0);
+  }
+  EXPECT_NEAR(world.body(box).linearVelocity.x(), 1.0, 1e-3);
+  EXPECT_NEAR(world.body(box).linearVelocity.y(), 0.0, 1e-3);
+}
+
+TEST(Contact, ForceDependentSlipMovesInProportionToTheForce) {
+  // ODE's slip1/slip2 make the tangent rows a damper: pushed with F the
+  // box slides at slip * F / points (each of the four points' rows takes
+  // its share of F; friction high enough never to saturate).
+  for (double force : {2.0, 4.0}) {
+    World world;
+    SolverSettings s = SolverSettings::paper(20);
+    s.warmStarting = true;
+    world.setSettings(s);
+    const BodyId box = world.createBody(boxBody(Vec3(0, 0, 0.25), 1.0, Vec3(0.5, 0.5, 0.5)));
+    const double slip = 0.05;
+    for (int i = 0; i < 240; ++i) {
+      ContactManifold m = groundContact(world, box, 0.25);
+      m.surface.mu = 100.0;
+      m.surface.slip1 = m.surface.slip2 = slip;
+      world.addContact(m);
+      world.addForce(box, Vec3(force, 0, 0));
+      world.step(1.0 / 60.0);
+    }
+    const double expected = slip * force / 4.0;
+    EXPECT_NEAR(world.body(box).linearVelocity.x(), expected, 0.02 * expected);
+  }
+}
+
+TEST(Contact, RollingResistanceStopsARollingBall) {
+  // Rolling resistance torque <= rolling * N about the tangents: a ball
+  // rolling at 1 m/s stops; without it, it keeps rolling.
+  auto speedAfter = [](double rolling) {
+    World world;
+    world.setSettings(SolverSettings::subStepped(4));
+    world.collisionSettings().surface.rolling = rolling;
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    const double r = 0.1;
+    const BodyId ball = world.createBody(test::sphereBody(Vec3(0, 0, r), 1.0, r));
+    world.addShape(Shape::sphere(ball, r));
+    world.setLinearVelocity(ball, Vec3(1, 0, 0));
+    world.setAngularVelocity(ball, Vec3(0, 1.0 / r, 0));
+    test::stepN(world, 180, 1.0 / 60.0);
+    return world.body(ball).linearVelocity.norm();
+  };
+  EXPECT_GT(speedAfter(0.0), 0.99);
+  // Deceleration of a rolling solid ball: (5/7) g rolling / r = 3.5 m/s^2
+  // with rolling = 0.05 m, so 1 m/s is gone well within 3 s.
+  EXPECT_LT(speedAfter(0.05), 1e-3);
+}
+
+// SCENES.md's stack and pyramid, 2000 frames (33 s) under the sub-stepped
+// solver with 20 sub-steps: the top box moves less than 1 mm.
+double topDrift(const std::string& name) {
+  scenes::Scene scene;
+  scenes::makeScene(name, scene);
+  scene.world.setSettings(SolverSettings::subStepped(20));
+  double drift = 0.0;
+  for (int f = 0; f < 2000; ++f) {
+    scene.world.step(scene.frameStep);
+    drift = std::max(drift, scenes::measure(scene).drift);
+  }
+  std::printf("%s: top box drift over 2000 frames %.3f mm\n", name.c_str(), 1e3 * drift);
+  return drift;
+}
+
+TEST(Contact, StackOfTenStandsFor2000Frames) {
+  EXPECT_LT(topDrift("stack"), 1e-3);
+}
+
+TEST(Contact, PyramidStandsFor2000Frames) {
+  EXPECT_LT(topDrift("pyramid"), 1e-3);
 }
 
 }  // namespace
