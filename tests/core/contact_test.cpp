@@ -357,5 +357,81 @@ TEST(Contact, PyramidStandsFor2000Frames) {
   EXPECT_LT(topDrift("pyramid"), 1e-3);
 }
 
+TEST(Contact, SpheresAndBoxesMeetWhereGeometrySays) {
+  // A sphere on a sphere, a sphere on a box, and a box standing on its
+  // edge across another box's edge (edge-edge contact): each lands at the
+  // height the shapes allow.
+  World world;
+  world.setSettings(SolverSettings::subStepped(4));
+  world.collisionSettings().surface.slop = 0.0;
+  const double r = 0.2;
+  BodyDesc fixed;
+  fixed.type = BodyType::Static;
+  fixed.position = Vec3(0, 0, 0);
+  const BodyId base = world.createBody(fixed);
+  world.addShape(Shape::sphere(base, r));
+  const BodyId top = world.createBody(test::sphereBody(Vec3(0, 0, 2 * r + 0.05), 1.0, r));
+  world.addShape(Shape::sphere(top, r));
+
+  fixed.position = Vec3(2, 0, 0);
+  const BodyId table = world.createBody(fixed);
+  world.addShape(Shape::box(table, Vec3(0.5, 0.5, 0.1)));
+  const BodyId ball = world.createBody(test::sphereBody(Vec3(2, 0, 0.1 + r + 0.05), 1.0, r));
+  world.addShape(Shape::sphere(ball, r));
+
+  // The static block is turned 45 degrees about y (its top is an edge
+  // along y), the falling box 45 degrees about x (its bottom is an edge
+  // along x): the edges cross.
+  fixed.position = Vec3(4, 0, 0);
+  fixed.orientation = Quat(Eigen::AngleAxisd(kPi / 4, Vec3::UnitY()));
+  const BodyId block = world.createBody(fixed);
+  world.addShape(Shape::box(block, Vec3(0.5, 0.5, 0.5)));
+  const double edgeHeight = 0.5 * std::sqrt(2.0) + 0.25 * std::sqrt(2.0);
+  BodyDesc d = boxBody(Vec3(4, 0, edgeHeight + 0.02), 1.0, Vec3(0.5, 0.5, 0.5));
+  d.orientation = Quat(Eigen::AngleAxisd(kPi / 4, Vec3::UnitX()));
+  const BodyId tilted = world.createBody(d);
+  world.addShape(Shape::box(tilted, Vec3(0.25, 0.25, 0.25)));
+
+  test::stepN(world, 30, 1.0 / 60.0);
+  // Only the first half second: the sphere on a sphere and the box on its
+  // edge are unstable balances, but they must first land where they touch.
+  EXPECT_NEAR(world.body(top).position.z(), 2 * r, 1e-3);
+  EXPECT_NEAR(world.body(ball).position.z(), 0.1 + r, 1e-3);
+  EXPECT_NEAR(world.body(tilted).position.z(), edgeHeight, 2e-3);
+  bool edgeContact = false;  // one point from the edge-edge branch of the SAT
+  for (const ContactManifold& m : world.contacts()) {
+    if (m.bodyA == tilted || m.bodyB == tilted) {
+      edgeContact = m.pointCount == 1 && m.points[0].feature >= 100;
+    }
+  }
+  EXPECT_TRUE(edgeContact);
+}
+
+TEST(Contact, SurfaceNormalVelocityAndCorrectionCap) {
+  // motionN = 0.5 m/s: a resting box is pushed off the surface at that
+  // speed. A box starting 5 cm deep comes out no faster than the cap.
+  {
+    World world;
+    world.setGravity(Vec3::Zero());
+    const BodyId box = world.createBody(boxBody(Vec3(0, 0, 0.25), 1.0, Vec3(0.5, 0.5, 0.5)));
+    ContactManifold m = groundContact(world, box, 0.25);
+    m.surface.motionN = 0.5;
+    world.addContact(m);
+    world.step(1.0 / 60.0);
+    EXPECT_NEAR(world.body(box).linearVelocity.z(), 0.5, 1e-4);  // less CFM's give
+  }
+  {
+    World world;
+    world.setGravity(Vec3::Zero());
+    const BodyId box = world.createBody(boxBody(Vec3(0, 0, 0.2), 1.0, Vec3(0.5, 0.5, 0.5)));
+    ContactManifold m = groundContact(world, box, 0.25);
+    m.surface.softness = Softness::erpCfm(1.0, 0.0);  // would remove all 5 cm in one step
+    m.surface.maxCorrectingVelocity = 0.3;
+    world.addContact(m);
+    world.step(1.0 / 60.0);
+    EXPECT_NEAR(world.body(box).linearVelocity.z(), 0.3, 1e-6);
+  }
+}
+
 }  // namespace
 }  // namespace blockstep
