@@ -90,6 +90,32 @@ JointDesc describe(int kind, const Pair& p) {
       d.axes[5] = {M::Locked, 0, 0, {}};
       return d;
     }
+    case 7: {
+      // Three limited rotation axes (swing-twist angles), translation locked.
+      SixDofJointDesc d;
+      d.common = c;
+      d.anchor = anchor;
+      using M = SixDofJointDesc::Mode;
+      for (int i = 0; i < 3; ++i)
+        d.axes[i] = {M::Locked, 0, 0, {}};
+      d.axes[3] = {M::Limited, -0.4, 0.4, {}};
+      d.axes[4] = {M::Limited, -0.6, 0.6, {}};
+      d.axes[5] = {M::Limited, -0.2, 0.5, {}};
+      return d;
+    }
+    case 8: {
+      // Twist free, one swing axis locked, the other limited.
+      SixDofJointDesc d;
+      d.common = c;
+      d.anchor = anchor;
+      using M = SixDofJointDesc::Mode;
+      for (int i = 0; i < 3; ++i)
+        d.axes[i] = {M::Locked, 0, 0, {}};
+      d.axes[3] = {M::Free, 0, 0, {}};
+      d.axes[4] = {M::Locked, 0, 0, {}};
+      d.axes[5] = {M::Limited, -0.3, 0.3, {}};
+      return d;
+    }
     default: {
       DistanceJointDesc d;
       d.common = c;
@@ -102,14 +128,14 @@ JointDesc describe(int kind, const Pair& p) {
   }
 }
 
-constexpr int kKinds = 8;
+constexpr int kKinds = 10;
 
 TEST(Joints, EveryKindHoldsUnderRandomForces) {
   for (int kind = 0; kind < kKinds; ++kind) {
     Pair p;
     makePair(p);
     const JointId j = p.world.createJoint(describe(kind, p));
-    SCOPED_TRACE(jointKindName(p.world.joint(j)));
+    SCOPED_TRACE(std::string(jointKindName(p.world.joint(j))) + " case " + std::to_string(kind));
     std::mt19937 rng(1234 + kind);
     std::normal_distribution<double> n(0.0, 1.0);
     double worstLin = 0.0, worstAng = 0.0;

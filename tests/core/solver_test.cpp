@@ -247,6 +247,12 @@ TEST(Validation, BadInputIsRefusedAndTheWorldKept) {
   u.common.bodyB = b;
   u.axis1 = u.axis2 = Vec3::UnitZ();
   EXPECT_THROW(world.createJoint(u), Error);
+  SixDofJointDesc six;
+  six.common.bodyB = b;
+  six.axes[3].mode = SixDofJointDesc::Mode::Free;
+  six.axes[4].mode = SixDofJointDesc::Mode::Free;  // one swing axis free, the other limited
+  six.axes[5] = {SixDofJointDesc::Mode::Limited, -0.2, 0.2, {}};
+  EXPECT_THROW(world.createJoint(six), Error);
   EXPECT_EQ(world.jointCount(), 0);
 
   EXPECT_THROW(world.step(0.0), Error);

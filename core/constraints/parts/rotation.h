@@ -55,6 +55,34 @@ struct RelativeRotation {
   double angle(int i) const { return 2.0 * std::atan2(r.vec()[i], r.w()); }
 };
 
+// The relative rotation split as r = swing * twist, twist about the
+// frame's x axis: twist = (w, x, 0, 0) / norm, swing = r twist*, whose
+// axis lies in the frame's y-z plane. Used by the cone-twist joint and by
+// 6-DOF joints with more than one rotation axis unlocked, where single-
+// axis angles 2 atan2(r_i, w) stop being angles once another axis turns.
+struct SwingTwist {
+  double twistAngle = 0.0;         // about x, in (-pi, pi]
+  double swingAngle = 0.0;         // >= 0
+  Vec3 swingAxis = Vec3::UnitY();  // unit, in the frame (x component ~ 0)
+
+  explicit SwingTwist(const Quat& r) {
+    const double twistNorm = std::hypot(r.w(), r.x());
+    const Quat twist =
+        twistNorm > 1e-9 ? Quat(r.w() / twistNorm, r.x() / twistNorm, 0.0, 0.0) : Quat::Identity();
+    twistAngle = 2.0 * std::atan2(twist.x(), twist.w());
+    Quat swing = r * twist.conjugate();
+    if (swing.w() < 0.0) swing.coeffs() = -swing.coeffs();
+    const double s = swing.vec().norm();
+    if (s > 1e-12) {
+      swingAngle = 2.0 * std::atan2(s, swing.w());
+      swingAxis = swing.vec() / s;
+    }
+  }
+  // Swing as a rotation vector's y and z components (rad): the swing
+  // angles about the frame's y and z axes.
+  double swingAbout(int axis) const { return swingAngle * swingAxis[axis]; }
+};
+
 // Locks the frame axes whose bit is set in mask (bit i = axis i).
 inline void addRotationRows(const RelativeRotation& rel, unsigned mask, const Softness& softness,
                             int firstSlot, RowWriter& out) {
