@@ -433,5 +433,21 @@ TEST(Contact, SurfaceNormalVelocityAndCorrectionCap) {
   }
 }
 
+TEST(Contact, SpeculativeContactsNeverPull) {
+  // A box 1.5 cm above the ground (inside the 2 cm margin) gets contact
+  // points, but falls freely until it touches: exactly g for the first
+  // step, and it lands without bouncing or sticking above the ground.
+  World world;
+  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  const BodyId box = addBox(world, Vec3(0, 0, 0.25 + 0.015), 1.0, Vec3(0.25, 0.25, 0.25));
+  world.setLinearVelocity(box, Vec3(0, 0, 0.5));  // moving away: still never pulled back
+  world.step(1.0 / 60.0);
+  ASSERT_EQ(world.contacts().size(), 1u);
+  EXPECT_NEAR(world.body(box).linearVelocity.z(), 0.5 - 9.81 / 60.0, 1e-12);
+  for (int k = 0; k < 4; ++k) EXPECT_EQ(world.contacts()[0].points[k].normalImpulse, 0.0);
+  test::stepN(world, 60, 1.0 / 60.0);
+  EXPECT_NEAR(world.body(box).position.z(), 0.25, 0.005 + 1e-4) << "rests within the slop";
+}
+
 }  // namespace
 }  // namespace blockstep
