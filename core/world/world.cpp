@@ -47,6 +47,20 @@ void validateInertia(double mass, const Mat3& inertia, const std::string& who) {
   }
 }
 
+// Puts `item` in a freed slot if there is one (ids stay small and stable),
+// else at the end.
+template <class T, class Id>
+Id storeInSlot(std::vector<T>& items, std::vector<Id>& freeSlots, const T& item) {
+  if (freeSlots.empty()) {
+    items.push_back(item);
+    return static_cast<Id>(items.size() - 1);
+  }
+  const Id id = freeSlots.back();
+  freeSlots.pop_back();
+  items[id] = item;
+  return id;
+}
+
 }  // namespace
 
 World::World() {
@@ -94,14 +108,7 @@ BodyId World::createBody(const BodyDesc& d) {
     b.invInertiaBody = Mat3::Zero();
   }
   ++liveBodies_;
-  if (!freeBodies_.empty()) {
-    const BodyId id = freeBodies_.back();
-    freeBodies_.pop_back();
-    bodies_[id] = b;
-    return id;
-  }
-  bodies_.push_back(b);
-  return static_cast<BodyId>(bodies_.size() - 1);
+  return storeInSlot(bodies_, freeBodies_, b);
 }
 
 Body& World::mutableBody(BodyId id) {
@@ -128,6 +135,9 @@ void World::destroyBody(BodyId id) {
   for (Shape& shape : shapes_) {
     if (shape.alive && shape.body == id) shape.alive = false;
   }
+  // Its contacts must not warm start a body that reuses the id.
+  std::erase_if(previousContacts_,
+                [id](const ContactManifold& m) { return m.bodyA == id || m.bodyB == id; });
   for (JointId j = 0; j < static_cast<JointId>(joints_.size()); ++j) {
     if (!joints_[j].alive) continue;
     const JointCommon& c = common(joints_[j].desc);
@@ -240,14 +250,7 @@ JointId World::createJoint(const JointDesc& desc) {
   joint.frames = std::visit([&](auto& j) { return setupJoint(j, a, b); }, d);
   joint.desc = d;
   ++liveJoints_;
-  if (!freeJoints_.empty()) {
-    const JointId id = freeJoints_.back();
-    freeJoints_.pop_back();
-    joints_[id] = joint;
-    return id;
-  }
-  joints_.push_back(joint);
-  return static_cast<JointId>(joints_.size() - 1);
+  return storeInSlot(joints_, freeJoints_, joint);
 }
 
 Joint& World::mutableJoint(JointId id) {

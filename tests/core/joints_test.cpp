@@ -32,6 +32,19 @@ void makePair(Pair& p) {
   p.b = p.world.createBody(db);
 }
 
+// A 6-DOF joint at `anchor` with the given modes (x, y, z, rot x, rot y,
+// rot z) and limits.
+SixDofJointDesc sixDof(const JointCommon& c, const Vec3& anchor,
+                       std::initializer_list<SixDofJointDesc::Axis> axes) {
+  SixDofJointDesc d;
+  d.common = c;
+  d.anchor = anchor;
+  int i = 0;
+  for (const auto& axis : axes)
+    d.axes[i++] = axis;
+  return d;
+}
+
 JointDesc describe(int kind, const Pair& p) {
   JointCommon c;
   c.bodyA = p.a;
@@ -76,45 +89,38 @@ JointDesc describe(int kind, const Pair& p) {
       return ct;
     }
     case 6: {
-      SixDofJointDesc d;
-      d.common = c;
-      d.anchor = anchor;
       using M = SixDofJointDesc::Mode;
-      d.axes[0] = {M::Limited, -0.3, 0.3, {}};  // free, the lever arm grows without bound
-      d.axes[1] = {M::Limited, -0.1, 0.1, {}};
-      d.axes[2] = {M::Locked, 0, 0, {}};
-      // One rotational degree of freedom: the angle of a limited rotation
-      // axis is only well defined while the other rotation axes are locked.
-      d.axes[3] = {M::Limited, -0.3, 0.3, {}};
-      d.axes[4] = {M::Locked, 0, 0, {}};
-      d.axes[5] = {M::Locked, 0, 0, {}};
-      return d;
+      // One rotational degree of freedom (single-axis angle); x limited,
+      // since a free slide lets the lever arm grow without bound.
+      return sixDof(c, anchor,
+                    {{M::Limited, -0.3, 0.3, {}},
+                     {M::Limited, -0.1, 0.1, {}},
+                     {M::Locked, 0, 0, {}},
+                     {M::Limited, -0.3, 0.3, {}},
+                     {M::Locked, 0, 0, {}},
+                     {M::Locked, 0, 0, {}}});
     }
     case 7: {
-      // Three limited rotation axes (swing-twist angles), translation locked.
-      SixDofJointDesc d;
-      d.common = c;
-      d.anchor = anchor;
       using M = SixDofJointDesc::Mode;
-      for (int i = 0; i < 3; ++i)
-        d.axes[i] = {M::Locked, 0, 0, {}};
-      d.axes[3] = {M::Limited, -0.4, 0.4, {}};
-      d.axes[4] = {M::Limited, -0.6, 0.6, {}};
-      d.axes[5] = {M::Limited, -0.2, 0.5, {}};
-      return d;
+      // Three limited rotation axes (swing-twist angles), translation locked.
+      return sixDof(c, anchor,
+                    {{M::Locked, 0, 0, {}},
+                     {M::Locked, 0, 0, {}},
+                     {M::Locked, 0, 0, {}},
+                     {M::Limited, -0.4, 0.4, {}},
+                     {M::Limited, -0.6, 0.6, {}},
+                     {M::Limited, -0.2, 0.5, {}}});
     }
     case 8: {
-      // Twist free, one swing axis locked, the other limited.
-      SixDofJointDesc d;
-      d.common = c;
-      d.anchor = anchor;
       using M = SixDofJointDesc::Mode;
-      for (int i = 0; i < 3; ++i)
-        d.axes[i] = {M::Locked, 0, 0, {}};
-      d.axes[3] = {M::Free, 0, 0, {}};
-      d.axes[4] = {M::Locked, 0, 0, {}};
-      d.axes[5] = {M::Limited, -0.3, 0.3, {}};
-      return d;
+      // Twist free, one swing axis locked, the other limited.
+      return sixDof(c, anchor,
+                    {{M::Locked, 0, 0, {}},
+                     {M::Locked, 0, 0, {}},
+                     {M::Locked, 0, 0, {}},
+                     {M::Free, 0, 0, {}},
+                     {M::Locked, 0, 0, {}},
+                     {M::Limited, -0.3, 0.3, {}}});
     }
     default: {
       DistanceJointDesc d;
