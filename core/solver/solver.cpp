@@ -13,6 +13,7 @@ namespace blockstep {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+constexpr double kNoBudget = -1.0;
 
 double seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
@@ -59,7 +60,6 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   const auto start = Clock::now();
   const int substeps = std::max(1, s.substeps);
   const double h = in.h / substeps;
-  const double deadline = s.timeBudget > 0.0 ? s.timeBudget : 0.0;
 
   stats.substeps = substeps;
   stats.iterations = 0;
@@ -82,10 +82,14 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     const auto solveStart = Clock::now();
     prepare(in, s, h);
     warmStart();
-    // Each sub-step gets its share of what remains of the time budget.
-    const double subDeadline =
-        deadline > 0.0 ? (deadline - seconds(start, solveStart)) / (substeps - sub) : 0.0;
-    stats.iterations += solve(s, sub, subDeadline, stats);
+    // Each sub-step gets its share of what remains of the time budget;
+    // once it is spent (prepare alone can spend it) a sub-step still runs
+    // one sweep. kNoBudget: no budget set.
+    const double subBudget =
+        s.timeBudget > 0.0
+            ? std::max(0.0, (s.timeBudget - seconds(start, solveStart)) / (substeps - sub))
+            : kNoBudget;
+    stats.iterations += solve(s, sub, subBudget, stats);
     integratePositions(in, s, h);
     relax(s, h);
     storeImpulses(in, h);
@@ -666,7 +670,7 @@ int Solver::solve(const SolverSettings& s, int substep, double budget, StepStats
           ResidualSample{substep, it + 1, max, count > 0 ? std::sqrt(sumSq / count) : 0.0});
     }
     if (s.tolerance > 0.0 && max < s.tolerance) break;
-    if (budget > 0.0 && seconds(start, Clock::now()) >= budget) break;
+    if (budget != kNoBudget && seconds(start, Clock::now()) >= budget) break;
   }
   return sweeps;
 }

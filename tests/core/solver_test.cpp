@@ -179,6 +179,13 @@ TEST(Solver, TimeBudgetStopsTheSweeps) {
   scene.world.step(scene.frameStep);
   EXPECT_LT(scene.world.lastStepStats().iterations, 100000);
   EXPECT_GE(scene.world.lastStepStats().iterations, 1);
+  // A budget spent before the sweeps start (prepare alone takes longer)
+  // still gives every sub-step exactly one sweep.
+  s.timeBudget = 1e-9;
+  s.substeps = 3;
+  scene.world.setSettings(s);
+  scene.world.step(scene.frameStep);
+  EXPECT_EQ(scene.world.lastStepStats().iterations, 3);
 }
 
 TEST(Solver, WarmStartingCutsTheSweepsANearRestChainNeeds) {
