@@ -568,9 +568,12 @@ void Solver::solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& 
 
 // The normal block when some point would pull: a few projected
 // Gauss-Seidel passes over the points inside the block (each clamped at
-// 0). Exact enumeration of the 2^n - 1 active sets would need a factor per
-// set; with at most four points and the block revisited every sweep, three
-// inner passes reach the same answer at a fraction of the cost.
+// 0), not an exact small LCP. Both were tried: exact enumeration of the
+// active sets (as Box2D v2 does for two points) made the 10-box stack
+// drift 9.4 mm in 2000 frames against 0.92 mm with these passes. Four
+// coplanar points make the LCP's answer non-unique (K has rank 3), and the
+// enumeration settles on three-corner supports that rock; the passes
+// spread the load over all four corners.
 void Solver::projectedContactSweeps(ConstraintBlock& blk, bool useBias, SolverBody& a,
                                     SolverBody& b) {
   ConstraintRow* eq = &rows_[blk.firstRow];
