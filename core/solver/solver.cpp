@@ -371,6 +371,13 @@ void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, dou
   blk.bounded = static_cast<std::uint8_t>(n - np);
 }
 
+double Solver::startVelocity(const ConstraintRow& row, const ConstraintBlock& blk) const {
+  auto v = [&](std::int32_t i) { return i == dummy_ ? Vec3(Vec3::Zero()) : startV_[i]; };
+  auto w = [&](std::int32_t i) { return i == dummy_ ? Vec3(Vec3::Zero()) : startW_[i]; };
+  return row.linA.dot(v(blk.bodyA)) + row.angA.dot(w(blk.bodyA)) + row.linB.dot(v(blk.bodyB)) +
+         row.angB.dot(w(blk.bodyB));
+}
+
 // Bias, CFM and effective masses of a block's rows, then K of its
 // equality (or contact normal) rows and its LDL^T.
 void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk) {
@@ -390,7 +397,10 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
         row.hi *= h;
         break;
       case RowBias::Speculative: {
-        const double approach = rowVelocity(row, a, b);  // < 0: closing
+        // Restitution reverses the approach speed from before this
+        // (sub-)step's forces, as ODE and Box2D measure it (with gravity
+        // already added the rebound came out 3% higher than ODE's).
+        const double approach = startVelocity(row, blk);  // < 0: closing
         if (row.bounce > 0.0 && approach < -row.bounceThreshold && row.C + approach * h <= 0.0) {
           // Restitution: leave at bounce times the approach speed; kept
           // through relax so the rebound survives it.

@@ -57,6 +57,8 @@ class Solver {
   void buildContactBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t c,
                          ConstraintBlock& blk);
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk);
+  // J v with the velocities the (sub-)step started from.
+  double startVelocity(const ConstraintRow& row, const ConstraintBlock& blk) const;
   void solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b);
   void projectedContactSweeps(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b);
   void solveContact(ConstraintBlock& blk, bool useBias, BlockMode mode, SolverBody& a,

@@ -1,0 +1,71 @@
+#include "adapters/ode/contact_mapping.h"
+
+namespace blockstep::ode {
+
+WorldContactParams WorldContactParams::of(dWorldID world) {
+  WorldContactParams p;
+  p.erp = dWorldGetERP(world);
+  p.cfm = dWorldGetCFM(world);
+  p.maxCorrectingVelocity = dWorldGetContactMaxCorrectingVel(world);
+  p.surfaceLayer = dWorldGetContactSurfaceLayer(world);
+  return p;
+}
+
+MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
+                         const WorldContactParams& world) {
+  MappedContact out;
+  ContactManifold& m = out.manifold;
+  const dSurfaceParameters& s = contact.surface;
+  const int mode = s.mode;
+
+  m.bodyA = body2;
+  m.bodyB = body1;
+  m.normal = Vec3(contact.geom.normal[0], contact.geom.normal[1], contact.geom.normal[2]);
+  m.pointCount = 1;
+  m.points[0].position = Vec3(contact.geom.pos[0], contact.geom.pos[1], contact.geom.pos[2]);
+  m.points[0].separation = -contact.geom.depth;
+
+  ContactSurface& c = m.surface;
+  c.softness = Softness::erpCfm((mode & dContactSoftERP) ? s.soft_erp : world.erp,
+                                (mode & dContactSoftCFM) ? s.soft_cfm : world.cfm);
+  c.slop = world.surfaceLayer;
+  c.maxCorrectingVelocity = world.maxCorrectingVelocity;
+  if (mode & dContactBounce) {
+    c.restitution = s.bounce;
+    c.restitutionThreshold = s.bounce_vel;
+  } else {
+    c.restitution = 0.0;
+    c.restitutionThreshold = 0.0;
+  }
+
+  const bool approx1 = (mode & dContactApprox1_1) != 0;
+  const bool approx2 = (mode & dContactApprox1_2) != 0;
+  if (approx1 != approx2) {
+    out.unsupported = "dContactApprox1_1 without dContactApprox1_2 (or the reverse)";
+  }
+  c.friction = approx1 ? ContactSurface::Friction::Box : ContactSurface::Friction::Force;
+  c.mu = s.mu;
+  c.mu2 = (mode & dContactMu2) ? s.mu2 : -1.0;
+  if (mode & dContactFDir1)
+    c.frictionDir1 = Vec3(contact.fdir1[0], contact.fdir1[1], contact.fdir1[2]);
+  c.motion1 = (mode & dContactMotion1) ? s.motion1 : 0.0;
+  c.motion2 = (mode & dContactMotion2) ? s.motion2 : 0.0;
+  c.motionN = (mode & dContactMotionN) ? s.motionN : 0.0;
+  c.slip1 = (mode & dContactSlip1) ? s.slip1 : 0.0;
+  c.slip2 = (mode & dContactSlip2) ? s.slip2 : 0.0;
+
+  if (mode & dContactRolling) {
+    const double rho = s.rho;
+    const double rho2 = (mode & dContactAxisDep) ? s.rho2 : rho;
+    const double rhoN = (mode & dContactAxisDep) ? s.rhoN : rho;
+    if (rho2 != rho) out.unsupported = "different rolling friction about the two tangents";
+    if (!(mode & dContactApprox1_N) || !approx1) {
+      out.unsupported = "rolling friction as a fixed torque (without dContactApprox1)";
+    }
+    c.rolling = rho;
+    c.spinning = rhoN;
+  }
+  return out;
+}
+
+}  // namespace blockstep::ode

@@ -1,0 +1,45 @@
+// ODE's contacts in the core's terms: one dContact (a contact joint's
+// data) becomes a one-point ContactManifold with the same meaning, read
+// from ODE 0.16's joints/contact.cpp (getInfo2):
+// - the contact pushes body1 along +normal, so the core's body B (pushed
+//   along +normal) is ODE's body1 and body A is body2 (or the world);
+// - depth beyond the world's contact surface layer is removed at ERP / h
+//   (soft_erp with dContactSoftERP), capped by the world's max correcting
+//   velocity; CFM is soft_cfm with dContactSoftCFM, else the world's;
+// - bounce applies when the approach speed exceeds bounce_vel;
+// - friction rows are bounded by +-mu as a force, or by +-mu times the
+//   normal force with dContactApprox1 (mu2 with dContactMu2, direction
+//   fdir1 with dContactFDir1);
+// - motion1/2 are body1's velocity relative to body2 along the friction
+//   directions, motionN along the normal; slip1/2 are the friction rows' CFM.
+#pragma once
+
+#include <ode/ode.h>
+
+#include "core/constraints/contact.h"
+
+namespace blockstep::ode {
+
+// The world settings a contact reads (dWorldGetERP, dWorldGetCFM,
+// dWorldGetContactMaxCorrectingVel, dWorldGetContactSurfaceLayer).
+struct WorldContactParams {
+  double erp = 0.2;
+  double cfm = 1e-5;
+  double maxCorrectingVelocity = dInfinity;
+  double surfaceLayer = 0.0;
+
+  static WorldContactParams of(dWorldID world);
+};
+
+struct MappedContact {
+  ContactManifold manifold;
+  // Set when the contact uses an ODE mode the core does not model; the
+  // caller must then step that world with ODE and say so.
+  const char* unsupported = nullptr;
+};
+
+// body1 and body2 as attached to the contact joint (kWorldBody for 0).
+MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
+                         const WorldContactParams& world);
+
+}  // namespace blockstep::ode
