@@ -68,4 +68,40 @@ MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
   return out;
 }
 
+namespace {
+
+bool sameSurface(const ContactSurface& a, const ContactSurface& b) {
+  return a.friction == b.friction && a.mu == b.mu && a.mu2 == b.mu2 &&
+         a.frictionDir1 == b.frictionDir1 && a.rolling == b.rolling && a.spinning == b.spinning &&
+         a.restitution == b.restitution && a.restitutionThreshold == b.restitutionThreshold &&
+         a.softness.mode == b.softness.mode && a.softness.erp == b.softness.erp &&
+         a.softness.cfm == b.softness.cfm && a.slop == b.slop &&
+         a.maxCorrectingVelocity == b.maxCorrectingVelocity && a.motion1 == b.motion1 &&
+         a.motion2 == b.motion2 && a.motionN == b.motionN && a.slip1 == b.slip1 &&
+         a.slip2 == b.slip2;
+}
+
+}  // namespace
+
+void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactManifold>& out) {
+  out.clear();
+  for (const ContactManifold& c : in) {
+    ContactManifold* target = nullptr;
+    for (ContactManifold& m : out) {
+      if (m.bodyA == c.bodyA && m.bodyB == c.bodyB && m.pointCount < kMaxManifoldPoints &&
+          m.normal.dot(c.normal) > 0.999 && sameSurface(m.surface, c.surface)) {
+        target = &m;
+        break;
+      }
+    }
+    if (!target) {
+      out.push_back(c);
+      continue;
+    }
+    for (int i = 0; i < c.pointCount && target->pointCount < kMaxManifoldPoints; ++i) {
+      target->points[target->pointCount++] = c.points[i];
+    }
+  }
+}
+
 }  // namespace blockstep::ode

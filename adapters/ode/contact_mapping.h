@@ -16,6 +16,8 @@
 
 #include <ode/ode.h>
 
+#include <vector>
+
 #include "core/constraints/contact.h"
 
 namespace blockstep::ode {
@@ -41,5 +43,12 @@ struct MappedContact {
 // body1 and body2 as attached to the contact joint (kWorldBody for 0).
 MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
                          const WorldContactParams& world);
+
+// ODE makes one contact joint per point. Points of the same body pair with
+// the same normal (within about 2.5 degrees) and the same surface are one
+// manifold for the core (up to four points), so they are solved as one
+// block instead of point by point. Merges `in` (one-point manifolds, in
+// ODE's order) into `out`, which is cleared first.
+void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactManifold>& out);
 
 }  // namespace blockstep::ode

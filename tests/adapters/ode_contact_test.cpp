@@ -202,5 +202,31 @@ TEST(OdeContacts, MappingReadsEverySurfaceMode) {
   EXPECT_NE(ode::mapContact(c, 3, kWorldBody, w).unsupported, nullptr);
 }
 
+TEST(OdeContacts, PointsOfOnePairAndSurfaceBecomeOneManifold) {
+  // Four ODE contacts of a box on the ground, then one with another
+  // surface and one of another pair: three manifolds, the first of four
+  // points.
+  dContact c{};
+  c.geom.normal[2] = 1;
+  c.surface.mode = dContactApprox1;
+  c.surface.mu = 0.5;
+  const ode::WorldContactParams w;
+  std::vector<ContactManifold> in, out;
+  for (int k = 0; k < 4; ++k) {
+    c.geom.pos[0] = k & 1 ? 0.25 : -0.25;
+    c.geom.pos[1] = k & 2 ? 0.25 : -0.25;
+    in.push_back(ode::mapContact(c, 0, kWorldBody, w).manifold);
+  }
+  c.surface.mu = 0.9;
+  in.push_back(ode::mapContact(c, 0, kWorldBody, w).manifold);
+  c.surface.mu = 0.5;
+  in.push_back(ode::mapContact(c, 1, kWorldBody, w).manifold);
+  ode::groupContacts(in, out);
+  ASSERT_EQ(out.size(), 3u);
+  EXPECT_EQ(out[0].pointCount, 4);
+  EXPECT_EQ(out[1].pointCount, 1);
+  EXPECT_EQ(out[2].bodyB, 1);
+}
+
 }  // namespace
 }  // namespace blockstep
