@@ -19,6 +19,10 @@ void validateSoftness(const Softness& s, const std::string& what) {
       throw Error(what + ": ERP must be in [0, 1] and CFM >= 0 and finite (got ERP " +
                   std::to_string(s.erp) + ", CFM " + std::to_string(s.cfm) + ")");
     }
+    if (s.mode == Softness::Mode::Stiffness) {
+      throw Error(what + ": stiffness and damping must be >= 0, finite and not both 0 (got " +
+                  std::to_string(s.stiffness) + ", " + std::to_string(s.damping) + ")");
+    }
     if (s.mode == Softness::Mode::StepSpring) {
       throw Error(what + ": step fraction must be > 0 and damping ratio >= 0 (got " +
                   std::to_string(s.stepFraction) + ", " + std::to_string(s.dampingRatio) + ")");

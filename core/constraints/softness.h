@@ -23,6 +23,12 @@
 // ERP it always carries damping (gamma > 0), which is what keeps warm-
 // started, not fully converged sweeps from feeding Baumgarte's correction
 // back into growing oscillation on high mass ratios.
+//
+// Stiffness form: a spring k (N/m or N m/rad) and damper d in absolute
+// units, as ODE's manual reads an (ERP, CFM) pair chosen for step h:
+//   k = ERP / (h CFM),  d = (1 - ERP) / CFM.
+// At any other step h' it is the row ERP' = h' k / (h' k + d),
+// CFM' = 1 / (h' k + d): the same physical spring when sub-stepping.
 #pragma once
 
 #include <algorithm>
@@ -33,13 +39,15 @@
 namespace blockstep {
 
 struct Softness {
-  enum class Mode : unsigned char { ErpCfm, Spring, StepSpring };
+  enum class Mode : unsigned char { ErpCfm, Spring, StepSpring, Stiffness };
   Mode mode = Mode::ErpCfm;
   double erp = 0.2;    // Baumgarte beta, fraction of the error removed per step
   double cfm = 1e-5;   // ODE's constraint force mixing: row velocity per unit force
   double hertz = 0.0;  // spring frequency, Hz (Spring mode)
   double dampingRatio = 1.0;
   double stepFraction = 0.25;  // StepSpring: hertz * h
+  double stiffness = 0.0;      // Stiffness: k, N/m (N m/rad for angular rows)
+  double damping = 0.0;        // Stiffness: d, N s/m (N m s/rad)
 
   static Softness erpCfm(double erp, double cfm) {
     Softness s;
@@ -62,10 +70,25 @@ struct Softness {
     s.dampingRatio = dampingRatio;
     return s;
   }
+  static Softness springDamper(double stiffness, double damping) {
+    Softness s;
+    s.mode = Mode::Stiffness;
+    s.stiffness = stiffness;
+    s.damping = damping;
+    return s;
+  }
+  // The spring and damper an (ERP, CFM) pair stands for at step h (CFM > 0).
+  static Softness fromErpCfmAt(double erp, double cfm, double h) {
+    return springDamper(erp / (h * cfm), (1.0 - erp) / cfm);
+  }
   static Softness rigid() { return erpCfm(0.2, 0.0); }
 
   bool valid() const {
     if (mode == Mode::ErpCfm) return erp >= 0.0 && erp <= 1.0 && cfm >= 0.0 && std::isfinite(cfm);
+    if (mode == Mode::Stiffness) {
+      return stiffness >= 0.0 && damping >= 0.0 && stiffness + damping > 0.0 &&
+             std::isfinite(stiffness) && std::isfinite(damping);
+    }
     if (mode == Mode::StepSpring) {
       return stepFraction > 0.0 && std::isfinite(stepFraction) && dampingRatio >= 0.0 &&
              std::isfinite(dampingRatio);
@@ -77,12 +100,14 @@ struct Softness {
   // Bias rate beta / h (1/s) for step h.
   double biasRate(double h) const {
     if (mode == Mode::ErpCfm) return erp / h;
+    if (mode == Mode::Stiffness) return stiffness / (h * stiffness + damping);
     const double hw = omegaH(h);
     return hw / (hw + 2.0 * dampingRatio) / h;
   }
   // gamma = c / h for a row whose K diagonal is kDiag.
   double gamma(double h, double kDiag) const {
     if (mode == Mode::ErpCfm) return cfm / h;
+    if (mode == Mode::Stiffness) return 1.0 / (h * (h * stiffness + damping));
     const double hw = omegaH(h);
     return kDiag / (hw * (hw + 2.0 * dampingRatio));
   }

@@ -1,0 +1,232 @@
+// Per-kind reading of ODE 0.16's joints (semantics from ODE's
+// joints/*.cpp getInfo2 and its public getters).
+#include "adapters/ode/joint_mapping.h"
+
+#include <cmath>
+
+namespace blockstep::ode {
+namespace {
+
+// Stand-in for an absent stop: far beyond any angle (which ODE keeps in
+// [-pi, pi]) and any sensible slider travel.
+constexpr double kFarStop = 1e9;
+
+Vec3 vec(const dVector3 v) {
+  return Vec3(v[0], v[1], v[2]);
+}
+
+using ParamGetter = dReal (*)(dJointID, int);
+
+// ODE's limit-motor of one axis (dxJointLimitMotor): stops at lo/hi with
+// StopERP/StopCFM and Bounce, a velocity motor Vel with FMax.
+void readAxis(dJointID j, ParamGetter get, int group, Limit& limit, Motor& motor) {
+  const double lo = get(j, dParamLoStop + group);
+  const double hi = get(j, dParamHiStop + group);
+  // ODE ignores stops when lo > hi (its setters refuse to make them so).
+  limit.enabled = (lo > -dInfinity || hi < dInfinity) && lo <= hi;
+  limit.lo = std::isfinite(lo) ? lo : -kFarStop;
+  limit.hi = std::isfinite(hi) ? hi : kFarStop;
+  limit.softness = Softness::erpCfm(get(j, dParamStopERP + group), get(j, dParamStopCFM + group));
+  limit.bounce = get(j, dParamBounce + group);
+  motor.targetVelocity = get(j, dParamVel + group);
+  motor.maxForce = get(j, dParamFMax + group);
+}
+
+JointCommon commonOf(BodyId body1, BodyId body2, const Softness& softness) {
+  JointCommon c;
+  c.bodyA = body2;
+  c.bodyB = body1;
+  c.softness = softness;
+  return c;
+}
+
+void readBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 a1, a2;
+  dJointGetBallAnchor(j, a1);
+  dJointGetBallAnchor2(j, a2);
+  BallJointDesc d;
+  // Ball, fixed and DBall joints carry their own ERP and CFM (set from the
+  // world's when the joint was made).
+  d.common =
+      commonOf(b1, b2, w.of(dJointGetBallParam(j, dParamERP), dJointGetBallParam(j, dParamCFM)));
+  d.anchor = vec(a1);
+  out.desc = d;
+  out.geometry.add(vec(a1), true, 1);
+  out.geometry.add(vec(a2), true, 2);
+}
+
+void readHinge(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 a1, a2, axis;
+  dJointGetHingeAnchor(j, a1);
+  dJointGetHingeAnchor2(j, a2);
+  dJointGetHingeAxis(j, axis);
+  HingeJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.anchor = vec(a1);
+  d.axis = vec(axis);
+  readAxis(j, dJointGetHingeParam, 0, d.limit, d.motor);
+  out.desc = d;
+  out.geometry.add(vec(a1), true, 1);
+  out.geometry.add(vec(a2), true, 2);
+  out.geometry.add(vec(axis), false, 1);
+  out.coordinateCount = 1;
+  out.coordinate[0] = dJointGetHingeAngle(j);
+}
+
+void readSlider(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 axis;
+  dJointGetSliderAxis(j, axis);
+  SliderJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.axis = vec(axis);
+  readAxis(j, dJointGetSliderParam, 0, d.limit, d.motor);
+  out.desc = d;
+  out.geometry.add(vec(axis), false, 1);
+  out.coordinateCount = 1;
+  out.coordinate[0] = dJointGetSliderPosition(j);
+}
+
+void readFixed(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  FixedJointDesc d;
+  d.common =
+      commonOf(b1, b2, w.of(dJointGetFixedParam(j, dParamERP), dJointGetFixedParam(j, dParamCFM)));
+  out.desc = d;
+}
+
+// Universal: ODE's axis1 is fixed in body1 (core B), axis2 in body2 (core
+// A); the core's axis1 is the one fixed in A. So core axis1 = ODE axis2,
+// core axis2 = ODE axis1, and their limits and motors swap likewise.
+void readUniversal(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 a1, a2, axis1, axis2;
+  dJointGetUniversalAnchor(j, a1);
+  dJointGetUniversalAnchor2(j, a2);
+  dJointGetUniversalAxis1(j, axis1);
+  dJointGetUniversalAxis2(j, axis2);
+  UniversalJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.anchor = vec(a1);
+  d.axis1 = vec(axis2);
+  d.axis2 = vec(axis1);
+  readAxis(j, dJointGetUniversalParam, dParamGroup, d.limit1, d.motor1);
+  readAxis(j, dJointGetUniversalParam, 0, d.limit2, d.motor2);
+  out.desc = d;
+  out.geometry.add(vec(a1), true, 1);
+  out.geometry.add(vec(a2), true, 2);
+  out.geometry.add(vec(axis1), false, 1);
+  out.geometry.add(vec(axis2), false, 2);
+  out.coordinateCount = 2;
+  out.coordinate[0] = dJointGetUniversalAngle2(j);  // core angle 1
+  out.coordinate[1] = dJointGetUniversalAngle1(j);  // core angle 2
+}
+
+// DBall: the anchors keep ODE's set distance (a rod).
+void readDBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 a1, a2;
+  dJointGetDBallAnchor1(j, a1);
+  dJointGetDBallAnchor2(j, a2);
+  DistanceJointDesc d;
+  d.common =
+      commonOf(b1, b2, w.of(dJointGetDBallParam(j, dParamERP), dJointGetDBallParam(j, dParamCFM)));
+  d.anchorA = vec(a2);
+  d.anchorB = vec(a1);
+  d.minLength = d.maxLength = dJointGetDBallDistance(j);
+  out.desc = d;
+  out.geometry.add(vec(a1), true, 1);
+  out.geometry.add(vec(a2), true, 2);
+}
+
+void shift(Limit& l, double offset) {
+  if (!l.enabled) return;
+  l.lo -= offset;
+  l.hi -= offset;
+}
+
+}  // namespace
+
+const char* odeJointTypeName(int type) {
+  switch (type) {
+    case dJointTypeBall:
+      return "ball";
+    case dJointTypeHinge:
+      return "hinge";
+    case dJointTypeSlider:
+      return "slider";
+    case dJointTypeContact:
+      return "contact";
+    case dJointTypeUniversal:
+      return "universal";
+    case dJointTypeHinge2:
+      return "hinge2";
+    case dJointTypeFixed:
+      return "fixed";
+    case dJointTypeNull:
+      return "null";
+    case dJointTypeAMotor:
+      return "angular motor (AMotor)";
+    case dJointTypeLMotor:
+      return "linear motor (LMotor)";
+    case dJointTypePlane2D:
+      return "plane2d";
+    case dJointTypePR:
+      return "PR";
+    case dJointTypePU:
+      return "PU";
+    case dJointTypePiston:
+      return "piston";
+    case dJointTypeDBall:
+      return "DBall";
+    case dJointTypeDHinge:
+      return "DHinge";
+    case dJointTypeTransmission:
+      return "transmission";
+    default:
+      return "unknown";
+  }
+}
+
+void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& world,
+               JointRead& out) {
+  out.geometry.count = 0;
+  out.coordinateCount = 0;
+  out.hasRows = true;
+  out.unsupported = nullptr;
+  switch (dJointGetType(j)) {
+    case dJointTypeBall:
+      readBall(j, body1, body2, out, world);
+      break;
+    case dJointTypeHinge:
+      readHinge(j, body1, body2, out, world);
+      break;
+    case dJointTypeSlider:
+      readSlider(j, body1, body2, out, world);
+      break;
+    case dJointTypeFixed:
+      readFixed(j, body1, body2, out, world);
+      break;
+    case dJointTypeUniversal:
+      readUniversal(j, body1, body2, out, world);
+      break;
+    case dJointTypeDBall:
+      readDBall(j, body1, body2, out, world);
+      break;
+    case dJointTypeNull:
+      out.hasRows = false;
+      break;
+    default:
+      out.unsupported = "this joint kind has no blockstep mapping yet";
+      break;
+  }
+}
+
+void shiftLimits(JointDesc& desc, const double offset[2]) {
+  if (auto* h = std::get_if<HingeJointDesc>(&desc)) {
+    shift(h->limit, offset[0]);
+  } else if (auto* s = std::get_if<SliderJointDesc>(&desc)) {
+    shift(s->limit, offset[0]);
+  } else if (auto* u = std::get_if<UniversalJointDesc>(&desc)) {
+    shift(u->limit1, offset[0]);
+    shift(u->limit2, offset[1]);
+  }
+}
+
+}  // namespace blockstep::ode

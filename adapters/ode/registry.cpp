@@ -1,0 +1,118 @@
+#include "adapters/ode/registry.h"
+
+#include "adapters/ode/world_bridge.h"
+
+namespace blockstep::ode {
+
+Registry::Registry() = default;
+Registry::~Registry() = default;
+
+Registry& Registry::instance() {
+  // Never destroyed: ODE objects may be destroyed by static destructors of
+  // the program after ours would have run.
+  static Registry* registry = new Registry();
+  return *registry;
+}
+
+WorldRecord* Registry::world(dWorldID world) {
+  std::unique_ptr<WorldRecord>* w = worlds_.find(world);
+  return w ? w->get() : nullptr;
+}
+
+WorldRecord& Registry::ensureWorld(dWorldID world) {
+  std::unique_ptr<WorldRecord>& w = worlds_[world];
+  if (!w) w = std::make_unique<WorldRecord>();
+  return *w;
+}
+
+void Registry::bodyCreated(dWorldID world, dBodyID body) {
+  std::lock_guard lock(mutex_);
+  if (!world || !body) return;
+  if (bodyWorld_.find(body)) bodyDestroyed(body);  // a reused address
+  WorldRecord& w = ensureWorld(world);
+  bodyWorld_[body] = BodyRecord{world, static_cast<std::uint32_t>(w.bodies.size())};
+  w.bodies.push_back(body);
+}
+
+void Registry::bodyDestroyed(dBodyID body) {
+  std::lock_guard lock(mutex_);
+  BodyRecord* record = bodyWorld_.find(body);
+  if (!record) return;
+  WorldRecord* w = world(record->world);
+  if (w) {
+    if (w->bridge) w->bridge->forgetBody(body);
+    // Swap-remove, keeping the moved body's index right.
+    const dBodyID last = w->bodies.back();
+    w->bodies[record->index] = last;
+    bodyWorld_.find(last)->index = record->index;
+    w->bodies.pop_back();
+  }
+  bodyWorld_.erase(body);
+}
+
+void Registry::jointCreated(dWorldID world, dJointGroupID group, dJointID joint,
+                            const dContact* contact) {
+  std::lock_guard lock(mutex_);
+  if (!world || !joint) return;
+  if (JointRecord* old = joints_.find(joint)) removeJoint(joint, *old);  // a reused address
+  WorldRecord& w = ensureWorld(world);
+  JointRecord& r = joints_[joint];
+  r.world = world;
+  r.group = group;
+  r.index = static_cast<std::uint32_t>(w.joints.size());
+  r.hasContact = contact != nullptr;
+  if (contact) r.contact = *contact;
+  w.joints.push_back(joint);
+  if (group) groups_[group].push_back(joint);
+}
+
+void Registry::removeJoint(dJointID joint, JointRecord& record) {
+  if (WorldRecord* w = world(record.world)) {
+    if (w->bridge) w->bridge->forgetJoint(joint);
+    const dJointID last = w->joints.back();
+    w->joints[record.index] = last;
+    joints_.find(last)->index = record.index;
+    w->joints.pop_back();
+  }
+  joints_.erase(joint);
+}
+
+void Registry::jointDestroyed(dJointID joint) {
+  std::lock_guard lock(mutex_);
+  if (JointRecord* r = joints_.find(joint)) removeJoint(joint, *r);
+}
+
+void Registry::groupEmptied(dJointGroupID group) {
+  std::lock_guard lock(mutex_);
+  std::vector<dJointID>* members = groups_.find(group);
+  if (!members) return;
+  for (dJointID j : *members) {
+    // A joint destroyed on its own and its address reused by a joint of
+    // another group must not be taken along.
+    JointRecord* r = joints_.find(j);
+    if (r && r->group == group) removeJoint(j, *r);
+  }
+  members->clear();  // keeps its capacity: groups are emptied every step
+}
+
+void Registry::groupDestroyed(dJointGroupID group) {
+  std::lock_guard lock(mutex_);
+  groupEmptied(group);
+  groups_.erase(group);  // the address may come back as another group
+}
+
+void Registry::worldDestroyed(dWorldID world) {
+  std::lock_guard lock(mutex_);
+  WorldRecord* w = this->world(world);
+  if (!w) return;
+  // ODE frees the world's bodies and ungrouped joints and detaches the
+  // grouped ones, which dJointGroupEmpty frees later: none of them may be
+  // read again, so all leave the registry now.
+  for (dBodyID b : w->bodies)
+    bodyWorld_.erase(b);
+  for (dJointID j : w->joints)
+    joints_.erase(j);
+  worlds_.erase(world);
+}
+
+}  // namespace blockstep::ode

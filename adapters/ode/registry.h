@@ -1,0 +1,77 @@
+// What blockstep knows of the ODE objects a program made. ODE's public API
+// cannot list a world's bodies, and a contact joint does not give back its
+// dContact, so the ODE entry points that create and destroy objects report
+// here (the plugin's interposed functions call these after the real ODE
+// call). Everything else is read through ODE's getters at each step.
+//
+// Every hook is idempotent and tolerates objects it never saw: ODE calls
+// some of these entry points itself (dWorldDestroy calls dBodyDestroy), and
+// a program may have made objects before the plugin was loaded.
+#pragma once
+
+#include <ode/ode.h>
+
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "adapters/ode/pointer_map.h"
+
+namespace blockstep::ode {
+
+class WorldBridge;
+
+struct JointRecord {
+  dWorldID world = nullptr;
+  dJointGroupID group = nullptr;
+  std::uint32_t index = 0;  // in its world's joint list
+  bool hasContact = false;
+  dContact contact{};  // the contact joint's data, as given to dJointCreateContact
+};
+
+struct WorldRecord {
+  std::vector<dBodyID> bodies;          // in creation order (ODE steps them in reverse)
+  std::vector<dJointID> joints;         // every joint, contacts included
+  std::unique_ptr<WorldBridge> bridge;  // the blockstep mirror, made at the first step
+};
+
+class Registry {
+ public:
+  Registry();
+  ~Registry();
+
+  // The process-wide registry the plugin feeds.
+  static Registry& instance();
+
+  void bodyCreated(dWorldID world, dBodyID body);
+  void bodyDestroyed(dBodyID body);
+  void jointCreated(dWorldID world, dJointGroupID group, dJointID joint, const dContact* contact);
+  void jointDestroyed(dJointID joint);
+  void groupEmptied(dJointGroupID group);
+  void groupDestroyed(dJointGroupID group);
+  void worldDestroyed(dWorldID world);
+
+  // nullptr for a world never seen.
+  WorldRecord* world(dWorldID world);
+  WorldRecord& ensureWorld(dWorldID world);
+  const JointRecord* joint(dJointID joint) const { return joints_.find(joint); }
+  bool knowsBody(dBodyID body) const { return bodyWorld_.find(body) != nullptr; }
+
+  // Hooks and steps take this lock; one step runs at a time per process.
+  std::recursive_mutex& mutex() { return mutex_; }
+
+ private:
+  void removeJoint(dJointID joint, JointRecord& record);
+
+  std::recursive_mutex mutex_;
+  PointerMap<dWorldID, std::unique_ptr<WorldRecord>> worlds_;
+  struct BodyRecord {
+    dWorldID world = nullptr;
+    std::uint32_t index = 0;
+  };
+  PointerMap<dBodyID, BodyRecord> bodyWorld_;
+  PointerMap<dJointID, JointRecord> joints_;
+  PointerMap<dJointGroupID, std::vector<dJointID>> groups_;
+};
+
+}  // namespace blockstep::ode

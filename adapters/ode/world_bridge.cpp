@@ -1,0 +1,434 @@
+#include "adapters/ode/world_bridge.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "adapters/ode/registry.h"
+
+namespace blockstep::ode {
+namespace {
+
+// ODE's default world CFM: at or below it a row counts as rigid.
+constexpr double kOdeDefaultCfm = 1e-5;
+// A geometry vector that moved this far in its body's frame was moved by
+// the program (dJointSet*Anchor / Axis), not by rounding.
+constexpr double kGeometryTolerance = 1e-7;
+
+Vec3 vec(const dReal* v) {
+  return Vec3(v[0], v[1], v[2]);
+}
+
+bool finite3(const dReal* v) {
+  return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
+}
+
+std::string bodyLabel(dBodyID b) {
+  char text[64];
+  std::snprintf(text, sizeof text, "body %p", static_cast<void*>(b));
+  return text;
+}
+
+// A vector in the frame of `body` (the world frame for 0).
+Vec3 inBodyFrame(dBodyID body, const Vec3& v, bool point) {
+  if (!body) return v;
+  const dReal* q = dBodyGetQuaternion(body);
+  const Quat rotation(q[0], q[1], q[2], q[3]);
+  const Vec3 rel = point ? Vec3(v - vec(dBodyGetPosition(body))) : v;
+  return rotation.conjugate() * rel;
+}
+
+}  // namespace
+
+SolverSettings BridgeSettings::fromQuickStepIterations(int iterations) {
+  return SolverSettings::subStepped(std::max(1, iterations / 2));
+}
+
+WorldBridge::WorldBridge(dWorldID world) : world_(world) {}
+
+Softness WorldBridge::jointSoftness(double erp, double cfm, const void* context) {
+  const auto* self = static_cast<const WorldBridge*>(context);
+  if (self->core_.settings().rigidJointSoftness && cfm > kOdeDefaultCfm && erp >= 0.0 &&
+      erp <= 1.0 && std::isfinite(cfm)) {
+    return Softness::fromErpCfmAt(erp, cfm, self->step_);
+  }
+  return Softness::erpCfm(erp, cfm);
+}
+
+SolverSettings WorldBridge::solverFor(double) const {
+  if (settings_.followQuickStepIterations) {
+    return BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(world_));
+  }
+  return settings_.solver;
+}
+
+WorldBridge::MappedBody& WorldBridge::mapBody(dBodyID body) {
+  MappedBody& m = bodies_[body];
+  if (m.id < 0) m.id = core_.createBody(BodyDesc{});
+  return m;
+}
+
+BodyId WorldBridge::coreBody(dBodyID body) {
+  return body ? mapBody(body).id : kWorldBody;
+}
+
+void WorldBridge::forgetBody(dBodyID body) {
+  MappedBody* m = bodies_.find(body);
+  if (!m) return;
+  // The core destroys the body's joints with it; their ODE joints are
+  // detached (ODE keeps them) and get new core joints when reattached.
+  const BodyId id = m->id;
+  joints_.forEach([&](dJointID, MappedJoint& j) {
+    if (j.id < 0) return;
+    const JointCommon& c = common(core_.joint(j.id));
+    if (c.bodyA == id || c.bodyB == id) j.id = -1;
+  });
+  if (id >= 0) core_.destroyBody(id);
+  bodies_.erase(body);
+}
+
+void WorldBridge::forgetJoint(dJointID joint) {
+  MappedJoint* m = joints_.find(joint);
+  if (!m) return;
+  if (m->id >= 0) core_.destroyJoint(m->id);
+  joints_.erase(joint);
+}
+
+// ------------------------------------------------------------------ step
+
+StepOutcome WorldBridge::step(const WorldRecord& record, double h) {
+  message_.clear();
+  if (!(h > 0.0) || !std::isfinite(h) || h > World::kMaxStep) {
+    message_ = "step size " + std::to_string(h) + " s is not in (0, " +
+               std::to_string(World::kMaxStep) + "]";
+    return StepOutcome::Invalid;
+  }
+  step_ = h;
+  try {
+    SolverSettings solver = solverFor(h);
+    bool gyroscopic = false;
+    for (dBodyID b : record.bodies)
+      gyroscopic |= dBodyGetGyroscopicMode(b) != 0;
+    solver.gyroscopic = gyroscopic;
+    core_.setSettings(solver);
+
+    if (!readAll(record)) return StepOutcome::Unsupported;
+    syncBodies(record);  // throws on bad body state, before ODE is touched
+  } catch (const Error& e) {
+    message_ = e.what();
+    return StepOutcome::Invalid;
+  }
+
+  autoDisable(record, h);
+  wakeIslands(record);
+  try {
+    syncJoints(record);
+    dVector3 g;
+    dWorldGetGravity(world_, g);
+    core_.setGravity(vec(g));
+    core_.step(h);
+  } catch (const Error& e) {
+    message_ = e.what();
+    return StepOutcome::Invalid;
+  }
+  writeBack(record);
+  writeFeedback(record);
+  return StepOutcome::Stepped;
+}
+
+bool WorldBridge::readAll(const WorldRecord& record) {
+  contactParams_ = WorldContactParams::of(world_);
+  JointWorldParams params;
+  params.erp = dWorldGetERP(world_);
+  params.cfm = dWorldGetCFM(world_);
+  params.softness = &WorldBridge::jointSoftness;
+  params.context = this;
+
+  reads_.resize(record.joints.size());
+  pointContacts_.clear();
+  contactBodies_.clear();
+  for (std::size_t i = 0; i < record.joints.size(); ++i) {
+    const dJointID j = record.joints[i];
+    JointRead& read = reads_[i];
+    read.hasRows = false;
+    read.unsupported = nullptr;
+    const dBodyID b1 = dJointGetBody(j, 0), b2 = dJointGetBody(j, 1);
+    if ((!b1 && !b2) || !dJointIsEnabled(j)) continue;
+    const JointRecord* rec = Registry::instance().joint(j);
+    if (rec && rec->hasContact) {
+      if (dJointGetFeedback(j)) {
+        message_ =
+            "ODE contact joint with dJointFeedback: blockstep does not report contact "
+            "joint feedback yet";
+        return false;
+      }
+      const MappedContact mapped =
+          mapContact(rec->contact, coreBody(b1), coreBody(b2), contactParams_);
+      if (mapped.unsupported) {
+        message_ =
+            std::string("ODE contact mode without a blockstep mapping: ") + mapped.unsupported;
+        return false;
+      }
+      pointContacts_.push_back(mapped.manifold);
+      contactBodies_.push_back({b1, b2});
+      continue;
+    }
+    readJoint(j, coreBody(b1), coreBody(b2), params, read);
+    if (read.unsupported) {
+      message_ =
+          std::string("ODE ") + odeJointTypeName(dJointGetType(j)) + " joint: " + read.unsupported;
+      return false;
+    }
+  }
+  return true;
+}
+
+void WorldBridge::syncBodies(const WorldRecord& record) {
+  for (dBodyID b : record.bodies) {
+    const BodyId id = mapBody(b).id;
+    const dReal* x = dBodyGetPosition(b);
+    const dReal* q = dBodyGetQuaternion(b);
+    const dReal* v = dBodyGetLinearVel(b);
+    const dReal* w = dBodyGetAngularVel(b);
+    const dReal* f = dBodyGetForce(b);
+    const dReal* t = dBodyGetTorque(b);
+    if (!finite3(x) || !finite3(v) || !finite3(w) || !finite3(f) || !finite3(t) ||
+        !std::isfinite(q[0]) || !std::isfinite(q[1]) || !std::isfinite(q[2]) ||
+        !std::isfinite(q[3])) {
+      throw Error("ODE " + bodyLabel(b) +
+                  " has a non-finite position, orientation, velocity, force or torque");
+    }
+    dMass mass;
+    dBodyGetMass(b, &mass);
+    Mat3 inertia;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        inertia(r, c) = mass.I[4 * r + c];
+    const Body& now = core_.body(id);
+    const bool kinematic = dBodyIsKinematic(b) != 0;
+    if (now.mass != mass.mass || now.inertiaBody != inertia) {
+      try {
+        core_.setMass(id, mass.mass, inertia);
+      } catch (const Error& e) {
+        // A kinematic body's mass does not matter (ODE ignores it too).
+        if (!kinematic) throw Error("ODE " + bodyLabel(b) + ": " + e.what());
+      }
+    }
+    const BodyType type = kinematic ? BodyType::Kinematic : BodyType::Dynamic;
+    if (now.type != type) core_.setType(id, type);
+    core_.setPosition(id, vec(x));
+    core_.setOrientation(id, Quat(q[0], q[1], q[2], q[3]));
+    core_.setLinearVelocity(id, vec(v));
+    core_.setAngularVelocity(id, vec(w));
+    core_.addForce(id, vec(f) - now.force);
+    core_.addTorque(id, vec(t) - now.torque);
+    core_.setGravityEnabled(id, dBodyGetGravityMode(b) != 0);
+    const double maxSpeed = dBodyGetMaxAngularSpeed(b);
+    core_.setMaxAngularSpeed(id, maxSpeed >= dInfinity ? kInf : maxSpeed);
+  }
+}
+
+// ODE's dInternalHandleAutoDisabling (util.cpp): a body with joints whose
+// velocities, averaged over the last N samples, stay under the thresholds
+// for the idle steps and the idle time is disabled, its velocities zeroed.
+void WorldBridge::autoDisable(const WorldRecord& record, double h) {
+  for (dBodyID b : record.bodies) {
+    BodySleep& s = mapBody(b).sleep;
+    const bool enabled = dBodyIsEnabled(b) != 0;
+    const int samples = dBodyGetAutoDisableAverageSamplesCount(b);
+    if (!s.initialized || (s.wasDisabled && enabled) || s.sampleCount != samples) {
+      // New, woken by the program, or resampled: start counting afresh.
+      s.initialized = true;
+      s.stepsLeft = dBodyGetAutoDisableSteps(b);
+      s.timeLeft = dBodyGetAutoDisableTime(b);
+      s.sampleCount = samples;
+      s.linear.assign(static_cast<std::size_t>(samples), Vec3::Zero());
+      s.angular.assign(static_cast<std::size_t>(samples), Vec3::Zero());
+      s.next = 0;
+      s.ready = false;
+    }
+    s.wasDisabled = !enabled;
+    if (!enabled || !dBodyGetAutoDisableFlag(b) || dBodyGetNumJoints(b) == 0 || samples <= 0) {
+      continue;
+    }
+    s.linear[s.next] = vec(dBodyGetLinearVel(b));
+    s.angular[s.next] = vec(dBodyGetAngularVel(b));
+    if (++s.next >= samples) {
+      s.next = 0;
+      s.ready = true;
+    }
+    bool idle = false;
+    if (s.ready) {
+      Vec3 lin = Vec3::Zero(), ang = Vec3::Zero();
+      for (int i = 0; i < samples; ++i) {
+        lin += s.linear[i];
+        ang += s.angular[i];
+      }
+      lin /= samples;
+      ang /= samples;
+      const double linThreshold = dBodyGetAutoDisableLinearThreshold(b);
+      const double angThreshold = dBodyGetAutoDisableAngularThreshold(b);
+      idle = lin.squaredNorm() <= linThreshold * linThreshold &&
+             ang.squaredNorm() <= angThreshold * angThreshold;
+    }
+    if (idle) {
+      --s.stepsLeft;
+      s.timeLeft -= h;
+    } else {
+      s.stepsLeft = dBodyGetAutoDisableSteps(b);
+      s.timeLeft = dBodyGetAutoDisableTime(b);
+    }
+    if (s.stepsLeft <= 0 && s.timeLeft <= 0.0) {
+      dBodyDisable(b);
+      dBodySetLinearVel(b, 0, 0, 0);
+      dBodySetAngularVel(b, 0, 0, 0);
+      s.wasDisabled = true;
+    }
+  }
+}
+
+// ODE's island walk (util.cpp dxProcessIslands): an enabled joint between
+// an enabled and a disabled body enables the disabled one, so disabled
+// bodies are woken by what touches them. Its sleep counters are kept, as
+// ODE keeps them.
+void WorldBridge::wakeIslands(const WorldRecord& record) {
+  bool changed = true;
+  while (changed) {
+    changed = false;
+    for (dJointID j : record.joints) {
+      if (!dJointIsEnabled(j)) continue;
+      const dBodyID b1 = dJointGetBody(j, 0), b2 = dJointGetBody(j, 1);
+      if (!b1 || !b2) continue;
+      const bool e1 = dBodyIsEnabled(b1) != 0, e2 = dBodyIsEnabled(b2) != 0;
+      if (e1 == e2) continue;
+      dBodyID sleeper = e1 ? b2 : b1;
+      dBodyEnable(sleeper);
+      changed = true;
+    }
+  }
+  for (dBodyID b : record.bodies) {
+    MappedBody& m = mapBody(b);
+    const bool enabled = dBodyIsEnabled(b) != 0;
+    if (!enabled) {
+      // A disabled body does not move: static for this step.
+      core_.setType(m.id, BodyType::Static);
+    } else if (m.sleep.wasDisabled) {
+      m.sleep.wasDisabled = false;
+    }
+  }
+}
+
+JointGeometry WorldBridge::toLocal(const JointGeometry& g, dBodyID body1, dBodyID body2) const {
+  JointGeometry local = g;
+  for (int i = 0; i < g.count; ++i) {
+    local.value[i] = inBodyFrame(g.side[i] == 1 ? body1 : body2, g.value[i], g.isPoint[i]);
+  }
+  return local;
+}
+
+bool WorldBridge::sameGeometry(const MappedJoint& m, const JointGeometry& now) const {
+  if (now.count != m.local.count) return false;
+  const JointGeometry local = toLocal(now, m.body1, m.body2);
+  for (int i = 0; i < now.count; ++i) {
+    if ((local.value[i] - m.local.value[i]).norm() > kGeometryTolerance) return false;
+  }
+  return true;
+}
+
+void WorldBridge::makeJoint(MappedJoint& m, dJointID j, JointRead& read) {
+  m.type = dJointGetType(j);
+  m.body1 = dJointGetBody(j, 0);
+  m.body2 = dJointGetBody(j, 1);
+  m.local = toLocal(read.geometry, m.body1, m.body2);
+  m.offset[0] = read.coordinate[0];
+  m.offset[1] = read.coordinate[1];
+  shiftLimits(read.desc, m.offset);
+  m.id = core_.createJoint(read.desc);
+}
+
+void WorldBridge::syncJoints(const WorldRecord& record) {
+  for (std::size_t i = 0; i < record.joints.size(); ++i) {
+    const dJointID j = record.joints[i];
+    JointRead& read = reads_[i];
+    MappedJoint* found = joints_.find(j);
+    const dBodyID b1 = dJointGetBody(j, 0), b2 = dJointGetBody(j, 1);
+    const bool awake = (b1 && dBodyIsEnabled(b1)) || (b2 && dBodyIsEnabled(b2));
+    if (!read.hasRows || !awake) {
+      if (found && found->id >= 0) core_.setJointEnabled(found->id, false);
+      continue;
+    }
+    MappedJoint& m = found ? *found : joints_[j];
+    if (m.id >= 0 && (m.type != dJointGetType(j) || m.body1 != b1 || m.body2 != b2 ||
+                      !sameGeometry(m, read.geometry))) {
+      core_.destroyJoint(m.id);
+      m.id = -1;
+    }
+    if (m.id < 0) {
+      makeJoint(m, j, read);
+    } else {
+      shiftLimits(read.desc, m.offset);
+      core_.updateJoint(m.id, read.desc);
+      core_.setJointEnabled(m.id, true);
+    }
+  }
+
+  for (std::size_t i = 0; i < pointContacts_.size(); ++i) {
+    const auto& [b1, b2] = contactBodies_[i];
+    const bool awake = (b1 && dBodyIsEnabled(b1)) || (b2 && dBodyIsEnabled(b2));
+    if (!awake) pointContacts_[i].pointCount = 0;
+  }
+  groupContacts(pointContacts_, manifolds_);
+  for (const ContactManifold& m : manifolds_) {
+    if (m.pointCount > 0) core_.addContact(m);
+  }
+}
+
+// ODE's dxStepBody damping (util.cpp): after the position update, a
+// velocity above its threshold is scaled by (1 - scale).
+void WorldBridge::writeBack(const WorldRecord& record) {
+  for (dBodyID b : record.bodies) {
+    if (!dBodyIsEnabled(b)) continue;
+    const Body& body = core_.body(mapBody(b).id);
+    Vec3 v = body.linearVelocity, w = body.angularVelocity;
+    const double linScale = dBodyGetLinearDamping(b);
+    const double linThreshold = dBodyGetLinearDampingThreshold(b);
+    if (linScale != 0.0 && v.squaredNorm() > linThreshold * linThreshold) v *= 1.0 - linScale;
+    const double angScale = dBodyGetAngularDamping(b);
+    const double angThreshold = dBodyGetAngularDampingThreshold(b);
+    if (angScale != 0.0 && w.squaredNorm() > angThreshold * angThreshold) w *= 1.0 - angScale;
+
+    const Quat& q = body.orientation;
+    const dQuaternion oq = {q.w(), q.x(), q.y(), q.z()};
+    dBodySetPosition(b, body.position.x(), body.position.y(), body.position.z());
+    dBodySetQuaternion(b, oq);
+    dBodySetLinearVel(b, v.x(), v.y(), v.z());
+    dBodySetAngularVel(b, w.x(), w.y(), w.z());
+    dBodySetForce(b, 0, 0, 0);
+    dBodySetTorque(b, 0, 0, 0);
+  }
+}
+
+// dJointFeedback: f1/t1 act on the joint's first attached body (ODE's
+// node 0: body1, or body2 when body1 is 0), torques about its centre.
+void WorldBridge::writeFeedback(const WorldRecord& record) {
+  for (dJointID j : record.joints) {
+    dJointFeedback* out = dJointGetFeedback(j);
+    if (!out) continue;
+    const MappedJoint* m = joints_.find(j);
+    JointFeedback fb;
+    if (m && m->id >= 0) fb = core_.jointFeedback(m->id);
+    // As ODE does, f2/t2 are written only when there is a second body.
+    const bool reversed = dJointGetBody(j, 0) == nullptr;
+    const bool twoBodies = dJointGetBody(j, 0) && dJointGetBody(j, 1);
+    const Vec3 f1 = reversed ? fb.forceA : fb.forceB, t1 = reversed ? fb.torqueA : fb.torqueB;
+    for (int k = 0; k < 3; ++k) {
+      out->f1[k] = f1[k];
+      out->t1[k] = t1[k];
+      if (twoBodies) {
+        out->f2[k] = fb.forceA[k];
+        out->t2[k] = fb.torqueA[k];
+      }
+    }
+  }
+}
+
+}  // namespace blockstep::ode

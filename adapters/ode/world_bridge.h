@@ -1,0 +1,127 @@
+// One ODE world stepped by blockstep. The bridge keeps a core World that
+// mirrors the ODE world's bodies and joints (so warm-start impulses and
+// joint frames live on between steps) and at each step:
+//   1. reads every joint and contact (nothing is changed yet: a kind or
+//      mode the core cannot model, or bad input, returns before any write,
+//      so the caller can step that world with ODE instead);
+//   2. runs ODE's auto-disable and island wake-up rules;
+//   3. copies bodies (pose, velocity, mass, force and torque accumulators,
+//      gravity mode, kinematic, max angular speed) into the core;
+//   4. makes, remakes (when the program moved an anchor or axis) or
+//      updates (limits, motors, ERP/CFM) the core joints, and hands over
+//      the contacts grouped into manifolds;
+//   5. steps the core and writes poses, velocities, cleared accumulators,
+//      ODE-style damping and dJointFeedback back.
+//
+// ERP and CFM: in ODE a pair (ERP, CFM) chosen for step h is a spring
+// k = ERP / (h CFM) and damper d = (1 - ERP) / CFM (ODE manual, "How to use
+// ERP and CFM"). When the solver runs sub-steps with a rigid-row softness
+// (SolverSettings::rigidJointSoftness), rows with CFM at or below ODE's
+// default 1e-5 count as rigid and take that softness; a larger CFM is the
+// program asking for a soft joint, and becomes that spring (the same
+// stiffness whatever the sub-step). Without sub-step softness, rows keep
+// the program's (ERP, CFM) as they are.
+#pragma once
+
+#include <ode/ode.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "adapters/ode/contact_mapping.h"
+#include "adapters/ode/joint_mapping.h"
+#include "adapters/ode/pointer_map.h"
+#include "core/world/world.h"
+
+namespace blockstep::ode {
+
+struct WorldRecord;
+
+struct BridgeSettings {
+  // Derive the solver from the world's quickstep iteration count
+  // (dWorldGetQuickStepNumIterations): n iterations become n / 2 sub-steps
+  // of one solve sweep and one relax sweep (SolverSettings::subStepped),
+  // so an A/B run against quickstep spends the same number of sweeps.
+  bool followQuickStepIterations = true;
+  SolverSettings solver = SolverSettings::subStepped(10);
+
+  static SolverSettings fromQuickStepIterations(int iterations);
+};
+
+enum class StepOutcome {
+  Stepped,
+  Unsupported,  // a joint kind or mode without a mapping; the world is untouched
+  Invalid,      // bad input (non-finite state, bad mass, bad step); the world is untouched
+};
+
+class WorldBridge {
+ public:
+  explicit WorldBridge(dWorldID world);
+
+  StepOutcome step(const WorldRecord& record, double h);
+  // Why the last step was not Stepped.
+  const std::string& message() const { return message_; }
+
+  // Called by the registry when ODE destroys these.
+  void forgetBody(dBodyID body);
+  void forgetJoint(dJointID joint);
+
+  BridgeSettings& settings() { return settings_; }
+  const StepStats& stats() const { return core_.lastStepStats(); }
+  const World& core() const { return core_; }
+
+ private:
+  struct BodySleep {  // ODE's auto-disable state of one body
+    int stepsLeft = 0;
+    double timeLeft = 0.0;
+    int sampleCount = 0;  // samples wanted (dBodyGetAutoDisableAverageSamplesCount)
+    int next = 0;
+    bool ready = false;
+    bool wasDisabled = false;
+    bool initialized = false;
+    std::vector<Vec3> linear, angular;
+  };
+  struct MappedBody {
+    BodyId id = -1;
+    BodySleep sleep;
+  };
+  struct MappedJoint {
+    JointId id = -1;
+    int type = -1;
+    dBodyID body1 = nullptr, body2 = nullptr;
+    JointGeometry local;  // geometry in its body's frame at creation
+    double offset[2] = {0.0, 0.0};
+    bool seen = false;
+  };
+
+  bool readAll(const WorldRecord& record);
+  void autoDisable(const WorldRecord& record, double h);
+  void wakeIslands(const WorldRecord& record);
+  void syncBodies(const WorldRecord& record);
+  void syncJoints(const WorldRecord& record);
+  void writeBack(const WorldRecord& record);
+  void writeFeedback(const WorldRecord& record);
+  BodyId coreBody(dBodyID body);
+  MappedBody& mapBody(dBodyID body);
+  JointGeometry toLocal(const JointGeometry& g, dBodyID body1, dBodyID body2) const;
+  bool sameGeometry(const MappedJoint& m, const JointGeometry& now) const;
+  void makeJoint(MappedJoint& m, dJointID j, JointRead& read);
+  SolverSettings solverFor(double h) const;
+  static Softness jointSoftness(double erp, double cfm, const void* bridge);
+
+  dWorldID world_;
+  World core_;
+  BridgeSettings settings_;
+  PointerMap<dBodyID, MappedBody> bodies_;
+  PointerMap<dJointID, MappedJoint> joints_;
+  // Per step, reused.
+  std::vector<JointRead> reads_;  // one per record.joints entry (contacts: unused)
+  std::vector<ContactManifold> pointContacts_, manifolds_;
+  std::vector<std::pair<dBodyID, dBodyID>> contactBodies_;  // ODE body1, body2 of each point
+  WorldContactParams contactParams_;
+  double step_ = 0.0;
+  std::string message_;
+};
+
+}  // namespace blockstep::ode

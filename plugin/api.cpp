@@ -1,0 +1,361 @@
+// The plugin's C API (blockstep_ode.h) and its configuration from the
+// BLOCKSTEP_* environment variables.
+#include <cerrno>
+#include <cstdarg>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "adapters/ode/registry.h"
+#include "adapters/ode/world_bridge.h"
+#include "blockstep/blockstep_ode.h"
+#include "plugin/plugin_state.h"
+
+namespace blockstep::plugin {
+namespace {
+
+using ode::BridgeSettings;
+using ode::Registry;
+using ode::StepOutcome;
+using ode::WorldBridge;
+
+struct Config {
+  Replace replace;
+  bool quiet = false;
+  BridgeSettings defaults;
+};
+
+// What the API remembers of a world besides its bridge.
+struct WorldState {
+  int stepper = dBlockStepperNone;
+  std::string message;
+  std::vector<std::string> said;  // messages already printed for this world
+};
+
+Config& config() {
+  static Config c;
+  return c;
+}
+
+ode::PointerMap<dWorldID, WorldState>& worldStates() {
+  static auto* states = new ode::PointerMap<dWorldID, WorldState>();
+  return *states;
+}
+
+bool parseInt(const char* name, const char* text, int lo, int& out) {
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(text, &end, 10);
+  if (errno || end == text || *end || v < lo || v > 100000) {
+    say("ignoring %s=%s: expected a whole number >= %d", name, text, lo);
+    return false;
+  }
+  out = static_cast<int>(v);
+  return true;
+}
+
+bool parseReal(const char* name, const char* text, double& out) {
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(text, &end);
+  if (errno || end == text || *end || !(v >= 0.0) || v > 1e9) {
+    say("ignoring %s=%s: expected a number >= 0", name, text);
+    return false;
+  }
+  out = v;
+  return true;
+}
+
+bool parseReplace(const char* text, Replace& out) {
+  if (!std::strcmp(text, "all"))
+    out = {true, true};
+  else if (!std::strcmp(text, "quickstep"))
+    out = {true, false};
+  else if (!std::strcmp(text, "step"))
+    out = {false, true};
+  else if (!std::strcmp(text, "none"))
+    out = {false, false};
+  else
+    return false;
+  return true;
+}
+
+const char* replaceName(const Replace& r) {
+  if (r.quickStep && r.step) return "dWorldQuickStep and dWorldStep";
+  if (r.quickStep) return "dWorldQuickStep";
+  if (r.step) return "dWorldStep";
+  return "nothing (ODE steps; call dWorldBlockStep to use blockstep)";
+}
+
+// Reads BLOCKSTEP_* once, when the library is loaded.
+void readEnvironment() {
+  Config& c = config();
+  const char* preload = std::getenv("LD_PRELOAD");
+  const bool preloaded = preload && std::strstr(preload, "blockstep_ode");
+  c.replace = preloaded ? Replace{true, true} : Replace{false, false};
+  if (const char* q = std::getenv("BLOCKSTEP_QUIET")) c.quiet = *q && std::strcmp(q, "0") != 0;
+  if (const char* r = std::getenv("BLOCKSTEP_REPLACE")) {
+    if (!parseReplace(r, c.replace)) {
+      say("ignoring BLOCKSTEP_REPLACE=%s: expected all, quickstep, step or none", r);
+    }
+  }
+
+  BridgeSettings& s = c.defaults;
+  if (const char* v = std::getenv("BLOCKSTEP_SOLVER")) {
+    if (!std::strcmp(v, "substep")) {
+      s.followQuickStepIterations = false;
+      s.solver = SolverSettings::subStepped(10);
+    } else if (!std::strcmp(v, "paper")) {
+      s.followQuickStepIterations = false;
+      s.solver = SolverSettings::paper(20);
+    } else if (std::strcmp(v, "follow") != 0) {
+      say("ignoring BLOCKSTEP_SOLVER=%s: expected follow, substep or paper", v);
+    }
+  }
+  int n = 0;
+  double x = 0.0;
+  auto explicitly = [&s] { s.followQuickStepIterations = false; };
+  if (const char* v = std::getenv("BLOCKSTEP_SUBSTEPS");
+      v && parseInt("BLOCKSTEP_SUBSTEPS", v, 1, n)) {
+    if (s.followQuickStepIterations) s.solver = SolverSettings::subStepped(n);
+    s.solver.substeps = n;
+    explicitly();
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_ITERATIONS");
+      v && parseInt("BLOCKSTEP_ITERATIONS", v, 1, n)) {
+    s.solver.iterations = n;
+    explicitly();
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_RELAX"); v && parseInt("BLOCKSTEP_RELAX", v, 0, n)) {
+    s.solver.relaxIterations = n;
+    explicitly();
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_WARM"); v && parseInt("BLOCKSTEP_WARM", v, 0, n)) {
+    s.solver.warmStarting = n != 0;
+    explicitly();
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_TOLERANCE");
+      v && parseReal("BLOCKSTEP_TOLERANCE", v, x)) {
+    s.solver.tolerance = x;
+    explicitly();
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_TIME_BUDGET");
+      v && parseReal("BLOCKSTEP_TIME_BUDGET", v, x)) {
+    s.solver.timeBudget = x;
+    explicitly();
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_MODE")) {
+    if (!std::strcmp(v, "block"))
+      s.solver.blockMode = BlockMode::Block;
+    else if (!std::strcmp(v, "row"))
+      s.solver.blockMode = BlockMode::RowByRow;
+    else
+      say("ignoring BLOCKSTEP_MODE=%s: expected block or row", v);
+  }
+}
+
+__attribute__((constructor)) void announce() {
+  readEnvironment();
+  const Config& c = config();
+  if (c.quiet) return;
+  const char* solver = c.defaults.followQuickStepIterations ? "sub-steps = quickstep iterations / 2"
+                                                            : "solver from BLOCKSTEP_* settings";
+  std::fprintf(stderr, "blockstep: active, replacing %s (%s)\n", replaceName(c.replace), solver);
+}
+
+WorldBridge& bridgeFor(dWorldID w) {
+  ode::WorldRecord& record = Registry::instance().ensureWorld(w);
+  if (!record.bridge) {
+    record.bridge = std::make_unique<WorldBridge>(w);
+    record.bridge->settings() = config().defaults;
+  }
+  return *record.bridge;
+}
+
+// Explicit settings, starting from what the world runs now.
+SolverSettings& explicitSettings(dWorldID w) {
+  BridgeSettings& s = bridgeFor(w).settings();
+  if (s.followQuickStepIterations) {
+    s.solver = BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(w));
+    s.followQuickStepIterations = false;
+  }
+  return s.solver;
+}
+
+const SolverSettings& currentSettings(dWorldID w) {
+  BridgeSettings& s = bridgeFor(w).settings();
+  if (s.followQuickStepIterations) {
+    static thread_local SolverSettings derived;
+    derived = BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(w));
+    return derived;
+  }
+  return s.solver;
+}
+
+void sayOnce(WorldState& state, dWorldID w, const std::string& text, const char* consequence) {
+  for (const std::string& s : state.said) {
+    if (s == text) return;
+  }
+  state.said.push_back(text);
+  say("world %p: %s; %s", static_cast<void*>(w), text.c_str(), consequence);
+}
+
+}  // namespace
+
+Replace& replace() {
+  return config().replace;
+}
+bool quiet() {
+  return config().quiet;
+}
+
+void say(const char* format, ...) {
+  char text[1024];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(text, sizeof text, format, args);
+  va_end(args);
+  std::fprintf(stderr, "blockstep: %s\n", text);
+}
+
+int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal)) {
+  if (!w) {
+    say("dWorldBlockStep: null world");
+    return 0;
+  }
+  Registry& registry = Registry::instance();
+  std::lock_guard lock(registry.mutex());
+  WorldBridge& bridge = bridgeFor(w);
+  WorldState& state = worldStates()[w];
+  const StepOutcome outcome = bridge.step(*registry.world(w), h);
+  state.message = bridge.message();
+  switch (outcome) {
+    case StepOutcome::Stepped:
+      state.stepper = dBlockStepperBlockstep;
+      return 1;
+    case StepOutcome::Unsupported:
+      sayOnce(state, w, bridge.message(), "this world is stepped by ODE");
+      state.stepper = dBlockStepperOde;
+      return fallback(w, h);
+    case StepOutcome::Invalid:
+      break;
+  }
+  sayOnce(state, w, bridge.message(), "the step was refused and the world left as it was");
+  state.stepper = dBlockStepperNone;
+  return 0;
+}
+
+void forgetWorld(dWorldID w) {
+  worldStates().erase(w);
+}
+
+}  // namespace blockstep::plugin
+
+using namespace blockstep;
+using namespace blockstep::plugin;
+
+extern "C" {
+
+int dWorldBlockStep(dWorldID w, dReal stepsize) {
+  BLOCKSTEP_REAL(dWorldQuickStep);
+  return blockStep(w, stepsize, real_dWorldQuickStep);
+}
+
+void dWorldSetBlockFollowQuickStep(dWorldID w) {
+  bridgeFor(w).settings().followQuickStepIterations = true;
+}
+void dWorldSetBlockSubsteppedSolver(dWorldID w, int substeps) {
+  explicitSettings(w) = SolverSettings::subStepped(substeps < 1 ? 1 : substeps);
+}
+void dWorldSetBlockPaperSolver(dWorldID w, int iterations) {
+  explicitSettings(w) = SolverSettings::paper(iterations < 1 ? 1 : iterations);
+}
+
+void dWorldSetBlockIterations(dWorldID w, int n) {
+  explicitSettings(w).iterations = n < 1 ? 1 : n;
+}
+int dWorldGetBlockIterations(dWorldID w) {
+  return currentSettings(w).iterations;
+}
+void dWorldSetBlockSubsteps(dWorldID w, int n) {
+  explicitSettings(w).substeps = n < 1 ? 1 : n;
+}
+int dWorldGetBlockSubsteps(dWorldID w) {
+  return currentSettings(w).substeps;
+}
+void dWorldSetBlockRelaxIterations(dWorldID w, int n) {
+  explicitSettings(w).relaxIterations = n < 0 ? 0 : n;
+}
+int dWorldGetBlockRelaxIterations(dWorldID w) {
+  return currentSettings(w).relaxIterations;
+}
+void dWorldSetBlockTolerance(dWorldID w, dReal t) {
+  explicitSettings(w).tolerance = t > 0 && t < dInfinity ? t : 0;
+}
+dReal dWorldGetBlockTolerance(dWorldID w) {
+  return currentSettings(w).tolerance;
+}
+void dWorldSetBlockTimeBudget(dWorldID w, dReal s) {
+  explicitSettings(w).timeBudget = s > 0 && s < dInfinity ? s : 0;
+}
+dReal dWorldGetBlockTimeBudget(dWorldID w) {
+  return currentSettings(w).timeBudget;
+}
+void dWorldSetBlockWarmStarting(dWorldID w, int on) {
+  explicitSettings(w).warmStarting = on != 0;
+}
+int dWorldGetBlockWarmStarting(dWorldID w) {
+  return currentSettings(w).warmStarting ? 1 : 0;
+}
+void dWorldSetBlockMode(dWorldID w, int mode) {
+  explicitSettings(w).blockMode =
+      mode == dBlockModeRowByRow ? BlockMode::RowByRow : BlockMode::Block;
+}
+int dWorldGetBlockMode(dWorldID w) {
+  return currentSettings(w).blockMode == BlockMode::RowByRow ? dBlockModeRowByRow : dBlockModeBlock;
+}
+void dWorldSetBlockRecordResiduals(dWorldID w, int on) {
+  explicitSettings(w).recordResiduals = on != 0;
+}
+
+int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* out) {
+  const WorldState* state = worldStates().find(w);
+  const ode::WorldRecord* record = Registry::instance().world(w);
+  if (!out || !state || !record || !record->bridge) return 0;
+  const StepStats& s = record->bridge->stats();
+  *out = dBlockStepStats{};
+  out->stepper = state->stepper;
+  if (state->stepper == dBlockStepperBlockstep) {
+    out->substeps = s.substeps;
+    out->iterations = s.iterations;
+    out->islands = s.islands;
+    out->blocks = s.blocks;
+    out->rows = s.rows;
+    out->residualCount = static_cast<int>(s.residuals.size());
+    out->solveSeconds = s.solveSeconds;
+    out->stepSeconds = s.stepSeconds;
+  }
+  return 1;
+}
+
+int dWorldGetBlockResidualHistory(dWorldID w, dReal* maxima, dReal* rms, int capacity) {
+  const ode::WorldRecord* record = Registry::instance().world(w);
+  if (!record || !record->bridge) return 0;
+  const auto& r = record->bridge->stats().residuals;
+  for (int i = 0; i < capacity && i < static_cast<int>(r.size()); ++i) {
+    if (maxima) maxima[i] = r[i].max;
+    if (rms) rms[i] = r[i].rms;
+  }
+  return static_cast<int>(r.size());
+}
+
+const char* dWorldGetBlockStepMessage(dWorldID w) {
+  const WorldState* state = worldStates().find(w);
+  return state ? state->message.c_str() : "";
+}
+
+int dBlockStepSetReplace(const char* mode) {
+  return mode && parseReplace(mode, config().replace) ? 1 : 0;
+}
+
+}  // extern "C"

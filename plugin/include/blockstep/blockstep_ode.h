@@ -1,0 +1,92 @@
+/* blockstep for ODE programs: a drop-in stepper with ODE's own API style.
+ *
+ *   #include <blockstep/blockstep_ode.h>
+ *   ...
+ *   dWorldBlockStep(world, 1.0 / 60.0);   instead of dWorldQuickStep
+ *
+ * Link with -lblockstep_ode before -lode (pkg-config blockstep_ode, or
+ * find_package(blockstep) and blockstep::ode in CMake). Unmodified
+ * programs can run with LD_PRELOAD=libblockstep_ode.so instead; see the
+ * README for the BLOCKSTEP_* variables.
+ *
+ * Every world starts following its quickstep iteration count
+ * (dWorldSetQuickStepNumIterations): n iterations become n / 2 sub-steps
+ * of one solve sweep and one relax sweep, so blockstep spends the sweeps
+ * quickstep would. The setters below switch a world to explicit settings.
+ */
+#ifndef BLOCKSTEP_ODE_H
+#define BLOCKSTEP_ODE_H
+
+#include <ode/ode.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Steps world w by stepsize seconds with blockstep. Returns 1 when the world
+ * was stepped: by blockstep, or, when the world holds a joint kind or
+ * contact mode blockstep cannot model, by ODE's dWorldQuickStep (said once
+ * on stderr; see dWorldGetBlockStepStats). Returns 0 on bad input (a
+ * non-finite state, an invalid mass, a step size not in (0, 1] s): the
+ * world is left as it was and dWorldGetBlockStepMessage says why. */
+ODE_API int dWorldBlockStep(dWorldID w, dReal stepsize);
+
+/* Solver presets. */
+ODE_API void dWorldSetBlockFollowQuickStep(dWorldID w); /* the default */
+ODE_API void dWorldSetBlockSubsteppedSolver(dWorldID w, int substeps);
+ODE_API void dWorldSetBlockPaperSolver(dWorldID w, int iterations);
+
+/* Individual settings (each one leaves follow-quickstep mode). */
+ODE_API void dWorldSetBlockIterations(dWorldID w, int iterations); /* sweeps per sub-step */
+ODE_API int dWorldGetBlockIterations(dWorldID w);
+ODE_API void dWorldSetBlockSubsteps(dWorldID w, int substeps);
+ODE_API int dWorldGetBlockSubsteps(dWorldID w);
+ODE_API void dWorldSetBlockRelaxIterations(dWorldID w, int iterations);
+ODE_API int dWorldGetBlockRelaxIterations(dWorldID w);
+ODE_API void dWorldSetBlockTolerance(dWorldID w, dReal tolerance); /* m/s, 0: off */
+ODE_API dReal dWorldGetBlockTolerance(dWorldID w);
+ODE_API void dWorldSetBlockTimeBudget(dWorldID w, dReal seconds); /* 0: off */
+ODE_API dReal dWorldGetBlockTimeBudget(dWorldID w);
+ODE_API void dWorldSetBlockWarmStarting(dWorldID w, int on);
+ODE_API int dWorldGetBlockWarmStarting(dWorldID w);
+enum { dBlockModeBlock = 0, dBlockModeRowByRow = 1 };
+ODE_API void dWorldSetBlockMode(dWorldID w, int mode);
+ODE_API int dWorldGetBlockMode(dWorldID w);
+ODE_API void dWorldSetBlockRecordResiduals(dWorldID w, int on);
+
+/* What the last dWorldBlockStep (or replaced step) of w did. */
+enum {
+  dBlockStepperNone = 0,      /* not stepped yet, or refused (bad input) */
+  dBlockStepperBlockstep = 1, /* stepped by blockstep */
+  dBlockStepperOde = 2        /* stepped by ODE: unsupported content */
+};
+typedef struct dBlockStepStats {
+  int stepper;
+  int substeps;
+  int iterations; /* velocity sweeps, summed over sub-steps */
+  int islands;
+  int blocks;
+  int rows;
+  int residualCount; /* entries in the residual history */
+  double solveSeconds;
+  double stepSeconds;
+} dBlockStepStats;
+/* Returns 1 and fills stats, 0 for a world blockstep has not seen. */
+ODE_API int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* stats);
+/* Copies up to capacity residuals (largest and RMS over rows, per sweep)
+ * of the last step; returns how many there were. Recorded while a
+ * tolerance is set or dWorldSetBlockRecordResiduals is on. */
+ODE_API int dWorldGetBlockResidualHistory(dWorldID w, dReal* maxima, dReal* rms, int capacity);
+/* Why the last step of w was refused or fell back to ODE ("" if neither). */
+ODE_API const char* dWorldGetBlockStepMessage(dWorldID w);
+
+/* Which ODE steppers go to blockstep: "all", "quickstep", "step" or
+ * "none" (the default unless preloaded; BLOCKSTEP_REPLACE sets it at load).
+ * Returns 0 for an unknown mode (nothing changes). */
+ODE_API int dBlockStepSetReplace(const char* mode);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* BLOCKSTEP_ODE_H */

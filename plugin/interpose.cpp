@@ -1,0 +1,211 @@
+// ODE entry points the plugin defines in front of ODE's: each forwards to
+// the real function (dlsym RTLD_NEXT) and tells the registry what it
+// made or destroyed; the steppers go to blockstep when BLOCKSTEP_REPLACE
+// asks. Input ODE would abort on or silently accept into NaN (a zero or
+// non-finite axis, a body jointed to itself, a non-finite or non-positive
+// mass) is refused here with a message, and the world stays as it was.
+#include <cmath>
+
+#include "adapters/ode/registry.h"
+#include "plugin/plugin_state.h"
+
+namespace blockstep::plugin {
+void forgetWorld(dWorldID w);
+}  // namespace blockstep::plugin
+
+using blockstep::ode::Registry;
+using namespace blockstep::plugin;
+
+namespace {
+
+bool goodAxis(const char* function, dReal x, dReal y, dReal z) {
+  const double n2 = double(x) * x + double(y) * y + double(z) * z;
+  if (std::isfinite(n2) && n2 > 1e-18) return true;
+  say("%s(%g, %g, %g): the axis must be finite and non-zero; call ignored", function, double(x),
+      double(y), double(z));
+  return false;
+}
+
+bool goodPoint(const char* function, dReal x, dReal y, dReal z) {
+  if (std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) return true;
+  say("%s(%g, %g, %g): the point must be finite; call ignored", function, double(x), double(y),
+      double(z));
+  return false;
+}
+
+bool goodMass(const dMass* m) {
+  if (!m) {
+    say("dBodySetMass: null mass; call ignored");
+    return false;
+  }
+  bool finite = std::isfinite(m->mass);
+  for (int i = 0; i < 12; ++i)
+    finite = finite && (i % 4 == 3 || std::isfinite(m->I[i]));
+  if (!finite || !(m->mass > 0)) {
+    say("dBodySetMass: mass %g is not positive and finite, or the inertia is not finite; call "
+        "ignored (the body keeps its mass)",
+        double(m->mass));
+    return false;
+  }
+  const double d0 = m->I[0], d1 = m->I[5], d2 = m->I[10];
+  if (!(d0 > 0 && d1 > 0 && d2 > 0)) {
+    say("dBodySetMass: inertia diagonal (%g, %g, %g) must be positive; call ignored", d0, d1, d2);
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+extern "C" {
+
+// ------------------------------------------------------------- steppers
+
+int dWorldQuickStep(dWorldID w, dReal stepsize) {
+  BLOCKSTEP_REAL(dWorldQuickStep);
+  if (replace().quickStep) return blockStep(w, stepsize, real_dWorldQuickStep);
+  return real_dWorldQuickStep(w, stepsize);
+}
+
+int dWorldStep(dWorldID w, dReal stepsize) {
+  BLOCKSTEP_REAL(dWorldStep);
+  if (replace().step) return blockStep(w, stepsize, real_dWorldStep);
+  return real_dWorldStep(w, stepsize);
+}
+
+// ---------------------------------------------------------------- worlds
+
+void dWorldDestroy(dWorldID w) {
+  BLOCKSTEP_REAL(dWorldDestroy);
+  real_dWorldDestroy(w);  // calls dBodyDestroy (ours) for each body
+  Registry::instance().worldDestroyed(w);
+  forgetWorld(w);
+}
+
+// ---------------------------------------------------------------- bodies
+
+dBodyID dBodyCreate(dWorldID w) {
+  BLOCKSTEP_REAL(dBodyCreate);
+  dBodyID b = real_dBodyCreate(w);
+  Registry::instance().bodyCreated(w, b);
+  return b;
+}
+
+void dBodyDestroy(dBodyID b) {
+  BLOCKSTEP_REAL(dBodyDestroy);
+  real_dBodyDestroy(b);
+  Registry::instance().bodyDestroyed(b);
+}
+
+void dBodySetMass(dBodyID b, const dMass* mass) {
+  BLOCKSTEP_REAL(dBodySetMass);
+  if (goodMass(mass)) real_dBodySetMass(b, mass);
+}
+
+// ---------------------------------------------------------------- joints
+
+#define BLOCKSTEP_JOINT_CREATE(name)                     \
+  dJointID name(dWorldID w, dJointGroupID g) {           \
+    BLOCKSTEP_REAL(name);                                \
+    dJointID j = real_##name(w, g);                      \
+    Registry::instance().jointCreated(w, g, j, nullptr); \
+    return j;                                            \
+  }
+BLOCKSTEP_JOINT_CREATE(dJointCreateBall)
+BLOCKSTEP_JOINT_CREATE(dJointCreateHinge)
+BLOCKSTEP_JOINT_CREATE(dJointCreateSlider)
+BLOCKSTEP_JOINT_CREATE(dJointCreateHinge2)
+BLOCKSTEP_JOINT_CREATE(dJointCreateUniversal)
+BLOCKSTEP_JOINT_CREATE(dJointCreatePR)
+BLOCKSTEP_JOINT_CREATE(dJointCreatePU)
+BLOCKSTEP_JOINT_CREATE(dJointCreatePiston)
+BLOCKSTEP_JOINT_CREATE(dJointCreateFixed)
+BLOCKSTEP_JOINT_CREATE(dJointCreateNull)
+BLOCKSTEP_JOINT_CREATE(dJointCreateAMotor)
+BLOCKSTEP_JOINT_CREATE(dJointCreateLMotor)
+BLOCKSTEP_JOINT_CREATE(dJointCreatePlane2D)
+BLOCKSTEP_JOINT_CREATE(dJointCreateDBall)
+BLOCKSTEP_JOINT_CREATE(dJointCreateDHinge)
+BLOCKSTEP_JOINT_CREATE(dJointCreateTransmission)
+#undef BLOCKSTEP_JOINT_CREATE
+
+dJointID dJointCreateContact(dWorldID w, dJointGroupID g, const dContact* c) {
+  BLOCKSTEP_REAL(dJointCreateContact);
+  dJointID j = real_dJointCreateContact(w, g, c);
+  Registry::instance().jointCreated(w, g, j, c);
+  return j;
+}
+
+void dJointDestroy(dJointID j) {
+  BLOCKSTEP_REAL(dJointDestroy);
+  real_dJointDestroy(j);
+  Registry::instance().jointDestroyed(j);
+}
+
+void dJointGroupEmpty(dJointGroupID g) {
+  BLOCKSTEP_REAL(dJointGroupEmpty);
+  real_dJointGroupEmpty(g);
+  Registry::instance().groupEmptied(g);
+}
+
+void dJointGroupDestroy(dJointGroupID g) {
+  BLOCKSTEP_REAL(dJointGroupDestroy);
+  real_dJointGroupDestroy(g);
+  Registry::instance().groupDestroyed(g);
+}
+
+void dJointAttach(dJointID j, dBodyID b1, dBodyID b2) {
+  BLOCKSTEP_REAL(dJointAttach);
+  if (b1 && b1 == b2) {
+    say("dJointAttach(%p, %p, %p): a joint cannot attach a body to itself; call ignored",
+        static_cast<void*>(j), static_cast<void*>(b1), static_cast<void*>(b2));
+    return;
+  }
+  real_dJointAttach(j, b1, b2);
+}
+
+// Axis and point setters ODE would abort on (zero axis) or take as NaN.
+#define BLOCKSTEP_CHECKED_SETTER(name, check)           \
+  void name(dJointID j, dReal x, dReal y, dReal z) {    \
+    BLOCKSTEP_REAL(name);                               \
+    if (check(#name, x, y, z)) real_##name(j, x, y, z); \
+  }
+BLOCKSTEP_CHECKED_SETTER(dJointSetHingeAxis, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetSliderAxis, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetUniversalAxis1, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetUniversalAxis2, goodAxis)
+// Deprecated in ODE 0.16, still part of its ABI.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+BLOCKSTEP_CHECKED_SETTER(dJointSetHinge2Axis1, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetHinge2Axis2, goodAxis)
+#pragma GCC diagnostic pop
+BLOCKSTEP_CHECKED_SETTER(dJointSetPRAxis1, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetPRAxis2, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetPUAxis1, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetPUAxis2, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetPUAxis3, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetPistonAxis, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetDHingeAxis, goodAxis)
+BLOCKSTEP_CHECKED_SETTER(dJointSetBallAnchor, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetBallAnchor2, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetHingeAnchor, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetUniversalAnchor, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetHinge2Anchor, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetPRAnchor, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetPUAnchor, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetPistonAnchor, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetDBallAnchor1, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetDBallAnchor2, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetDHingeAnchor1, goodPoint)
+BLOCKSTEP_CHECKED_SETTER(dJointSetDHingeAnchor2, goodPoint)
+#undef BLOCKSTEP_CHECKED_SETTER
+
+void dJointSetHinge2Axes(dJointID j, const dReal* axis1, const dReal* axis2) {
+  BLOCKSTEP_REAL(dJointSetHinge2Axes);
+  if (axis1 && !goodAxis("dJointSetHinge2Axes (axis1)", axis1[0], axis1[1], axis1[2])) return;
+  if (axis2 && !goodAxis("dJointSetHinge2Axes (axis2)", axis2[0], axis2[1], axis2[2])) return;
+  real_dJointSetHinge2Axes(j, axis1, axis2);
+}
+
+}  // extern "C"

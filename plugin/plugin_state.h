@@ -1,0 +1,47 @@
+// State shared by the plugin's C API (api.cpp) and its interposed ODE
+// entry points (interpose.cpp): the real ODE functions, what the
+// BLOCKSTEP_* variables asked for, and one-time messages.
+#pragma once
+
+#include <ode/ode.h>
+
+#include <dlfcn.h>
+
+#include <cstdio>
+#include <cstdlib>
+
+namespace blockstep::plugin {
+
+// The next definition of `name` after this library: ODE's own.
+template <class F>
+F realOde(const char* name) {
+  void* f = dlsym(RTLD_NEXT, name);
+  if (!f) {
+    std::fprintf(stderr,
+                 "blockstep: cannot find ODE's %s after libblockstep_ode.so (link -lblockstep_ode "
+                 "before -lode, or preload it); stopping\n",
+                 name);
+    std::abort();
+  }
+  return reinterpret_cast<F>(f);
+}
+
+// Declares and caches the real ODE function `name`.
+#define BLOCKSTEP_REAL(name) \
+  static const auto real_##name = ::blockstep::plugin::realOde<decltype(&::name)>(#name)
+
+struct Replace {
+  bool quickStep = false;
+  bool step = false;
+};
+Replace& replace();
+bool quiet();
+
+// Steps w with blockstep; for content blockstep cannot model, with
+// `fallback` (ODE's own stepper). Returns ODE's convention: 1 stepped, 0 not.
+int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal));
+
+// Prints "blockstep: <text>" on stderr unless BLOCKSTEP_QUIET is set.
+void say(const char* format, ...) __attribute__((format(printf, 1, 2)));
+
+}  // namespace blockstep::plugin

@@ -1,0 +1,317 @@
+// Each ODE joint kind, stepped by dWorldBlockStep, follows the trajectory
+// ODE's direct solver (dWorldStep) gives, in ODE's own coordinates (the
+// angles and positions its getters report), and keeps the joint at least
+// as tight as quickstep with the same iteration count.
+#include <cmath>
+
+#include "ode_twin.h"
+
+namespace blockstep::test {
+namespace {
+
+const auto* const kOde = ::testing::AddGlobalTestEnvironment(new OdeLibrary);
+
+constexpr double kStep = 1.0 / 240.0;
+constexpr double kSeconds = 2.0;
+
+// Blockstep at high effort: the reference comparisons ask for agreement
+// with the direct solver, not for the default cost.
+void highEffort(OdeScene& s) {
+  dWorldSetBlockSubsteppedSolver(s.world, 20);
+}
+
+TEST(OdeJoints, HingePendulumFollowsDirectSolver) {
+  auto build = [](OdeScene& s) {
+    dBodyID bob = s.box(0.0, 0.0, 1.0 - 0.7);
+    dBodySetLinearVel(bob, 1.5, 0.0, 0.0);
+    dJointID j = s.add(dJointCreateHinge(s.world, 0), bob, nullptr);
+    dJointSetHingeAnchor(j, 0.0, 0.0, 1.0);
+    dJointSetHingeAxis(j, 0.0, 1.0, 0.0);
+  };
+  auto probe = [](OdeScene& s) {
+    dVector3 a1, a2;
+    dJointGetHingeAnchor(s.joints[0], a1);
+    dJointGetHingeAnchor2(s.joints[0], a2);
+    return std::vector<double>{dJointGetHingeAngle(s.joints[0]), distance(a1, a2)};
+  };
+  const TwinRun run = runTwin(build, probe, kSeconds, kStep, 20, highEffort);
+  run.report("hinge angle (rad)", 0);
+  run.reportError("anchor gap (m)", 1);
+  // The pendulum swings about 0.9 rad; the trajectories stay within 0.02 rad.
+  EXPECT_GT(TwinRun::maxOf(run.direct, 0), 0.5);
+  EXPECT_LT(run.maxDifference(0), 0.02);
+  EXPECT_LE(TwinRun::maxOf(run.block, 1), TwinRun::maxOf(run.quick, 1) + 1e-6);
+}
+
+// Two hinges in series (a double pendulum), the lower one between two
+// bodies, the upper one attached with the body as ODE's body2 (reversed).
+TEST(OdeJoints, DoubleHingeAndReversedAttachment) {
+  auto build = [](OdeScene& s) {
+    dBodyID upper = s.box(0.5, 0.0, 1.0);
+    dBodyID lower = s.box(1.0, 0.0, 1.0, 0.5);
+    dJointID top = s.add(dJointCreateHinge(s.world, 0), nullptr, upper);
+    dJointSetHingeAnchor(top, 0.0, 0.0, 1.0);
+    dJointSetHingeAxis(top, 0.0, 1.0, 0.0);
+    dJointID mid = s.add(dJointCreateHinge(s.world, 0), upper, lower);
+    dJointSetHingeAnchor(mid, 0.5, 0.0, 1.0);
+    dJointSetHingeAxis(mid, 0.0, 1.0, 0.0);
+  };
+  auto probe = [](OdeScene& s) {
+    return std::vector<double>{dJointGetHingeAngle(s.joints[0]), dJointGetHingeAngle(s.joints[1])};
+  };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("upper hinge angle (rad)", 0);
+  run.report("lower hinge angle (rad)", 1);
+  EXPECT_GT(TwinRun::maxOf(run.direct, 0), 0.5);
+  // A double pendulum is chaotic; over 1 s the two solvers stay together.
+  EXPECT_LT(run.maxDifference(0), 0.03);
+  EXPECT_LT(run.maxDifference(1), 0.05);
+}
+
+// Stops mean what they mean in ODE: the zero angle is the pose at
+// dJointSetHingeAxis, here with the bob already turned by 0.4 rad. With
+// bounce, blockstep runs the paper's solver (one step, ODE's own ERP and
+// CFM rows): the sub-stepped solver's damped rows take up part of an
+// impulsive rebound in the joint (see the README's solver notes).
+TEST(OdeJoints, HingeStopsUseOdesZeroAngle) {
+  for (const double bounce : {0.0, 0.5}) {
+    auto build = [bounce](OdeScene& s) {
+      dBodyID bob = s.box(0.0, 0.0, 0.3);
+      dMatrix3 r;
+      dRFromAxisAndAngle(r, 0, 1, 0, 0.4);
+      dBodySetRotation(bob, r);
+      dBodySetLinearVel(bob, 2.0, 0.0, 0.0);
+      dJointID j = s.add(dJointCreateHinge(s.world, 0), bob, nullptr);
+      dJointSetHingeAnchor(j, 0.0, 0.0, 1.0);
+      dJointSetHingeAxis(j, 0.0, 1.0, 0.0);
+      dJointSetHingeParam(j, dParamLoStop, -0.3);
+      dJointSetHingeParam(j, dParamHiStop, 0.25);
+      dJointSetHingeParam(j, dParamBounce, bounce);
+    };
+    auto probe = [](OdeScene& s) { return std::vector<double>{dJointGetHingeAngle(s.joints[0])}; };
+    auto configure = [bounce](OdeScene& s) {
+      if (bounce > 0.0) {
+        dWorldSetBlockPaperSolver(s.world, 50);
+      } else {
+        highEffort(s);
+      }
+    };
+    const TwinRun run = runTwin(build, probe, kSeconds, kStep, 20, configure);
+    run.report(
+        bounce > 0.0 ? "hinge angle, stops with bounce 0.5 (rad)" : "hinge angle, stops (rad)", 0);
+    double lo = 0.0, hi = 0.0;
+    for (const auto& v : run.block) {
+      lo = std::min(lo, v[0]);
+      hi = std::max(hi, v[0]);
+    }
+    std::printf("  blockstep range [%.4f, %.4f], stops [-0.3, 0.25]\n", lo, hi);
+    EXPECT_GT(lo, -0.3 - 0.01);
+    EXPECT_LT(hi, 0.25 + 0.01);
+    EXPECT_GT(hi, 0.2);  // it does reach the upper stop
+    EXPECT_LT(run.maxDifference(0), 0.05);
+  }
+}
+
+// A velocity motor with a force limit, no gravity: the hinge spins up to
+// dParamVel, as fast as FMax allows.
+TEST(OdeJoints, HingeMotorReachesItsSpeed) {
+  auto build = [](OdeScene& s) {
+    dWorldSetGravity(s.world, 0, 0, 0);
+    dBodyID wheel = s.box(0.0, 0.0, 0.0, 2.0, 0.5);
+    dJointID j = s.add(dJointCreateHinge(s.world, 0), wheel, nullptr);
+    dJointSetHingeAnchor(j, 0.0, 0.0, 0.0);
+    dJointSetHingeAxis(j, 0.0, 0.0, 1.0);
+    dJointSetHingeParam(j, dParamVel, 3.0);
+    dJointSetHingeParam(j, dParamFMax, 0.5);
+  };
+  auto probe = [](OdeScene& s) {
+    return std::vector<double>{dJointGetHingeAngleRate(s.joints[0])};
+  };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("motor speed (rad/s)", 0);
+  // I = 2 * 0.5^2 / 6 = 1/12 kg m^2; 0.5 N m takes 0.5 s to reach 3 rad/s.
+  EXPECT_NEAR(run.block[59][0], 0.5 / (1.0 / 12.0) * 0.25, 0.02);
+  EXPECT_NEAR(run.block.back()[0], 3.0, 1e-3);
+  EXPECT_LT(run.maxDifference(0), 0.01);
+}
+
+// A slider on a 45 degree incline with a stop 0.2 m down and a motor
+// pushing up on a second run.
+TEST(OdeJoints, SliderStopAndMotor) {
+  for (const bool motor : {false, true}) {
+    auto build = [motor](OdeScene& s) {
+      dBodyID block = s.box(0.0, 0.0, 0.0);
+      dJointID j = s.add(dJointCreateSlider(s.world, 0), block, nullptr);
+      dJointSetSliderAxis(j, 1.0, 0.0, 1.0);
+      dJointSetSliderParam(j, dParamLoStop, -0.2);
+      if (motor) {
+        dJointSetSliderParam(j, dParamVel, 0.5);
+        dJointSetSliderParam(j, dParamFMax, 20.0);
+      }
+    };
+    auto probe = [](OdeScene& s) {
+      return std::vector<double>{dJointGetSliderPosition(s.joints[0])};
+    };
+    const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+    run.report(motor ? "slider position, motor (m)" : "slider position, stop (m)", 0);
+    // ODE's stop is soft (StopERP 0.2 per step): it sinks 6 mm past it,
+    // blockstep's about 0.1 mm.
+    EXPECT_LT(run.maxDifference(0), 0.01);
+    if (motor) {
+      EXPECT_NEAR(run.block.back()[0], 0.5 * 1.0, 0.02);
+    } else {
+      EXPECT_NEAR(run.block.back()[0], -0.2, 0.005);
+    }
+  }
+}
+
+// Ball joints: a double pendulum swinging out of plane.
+TEST(OdeJoints, BallDoublePendulum) {
+  auto build = [](OdeScene& s) {
+    dBodyID a = s.box(0.4, 0.0, 1.0);
+    dBodyID b = s.box(0.8, 0.0, 1.0);
+    dBodySetLinearVel(b, 0.0, 1.0, 0.0);
+    dJointID top = s.add(dJointCreateBall(s.world, 0), a, nullptr);
+    dJointSetBallAnchor(top, 0.0, 0.0, 1.0);
+    dJointID mid = s.add(dJointCreateBall(s.world, 0), a, b);
+    dJointSetBallAnchor(mid, 0.4, 0.0, 1.0);
+  };
+  auto probe = [](OdeScene& s) {
+    const dReal* p = dBodyGetPosition(s.bodies[1]);
+    dVector3 a1, a2;
+    dJointGetBallAnchor(s.joints[1], a1);
+    dJointGetBallAnchor2(s.joints[1], a2);
+    return std::vector<double>{p[0], p[1], p[2], distance(a1, a2)};
+  };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("lower bob x (m)", 0);
+  run.report("lower bob y (m)", 1);
+  run.report("lower bob z (m)", 2);
+  run.reportError("lower anchor gap (m)", 3);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_LT(run.maxDifference(i), 0.02);
+  EXPECT_LE(TwinRun::maxOf(run.block, 3), TwinRun::maxOf(run.quick, 3));
+}
+
+// Universal joint: a body hanging below it, spun about both axes, with a
+// stop on the second angle.
+TEST(OdeJoints, UniversalAnglesAndStops) {
+  auto build = [](OdeScene& s) {
+    dBodyID bob = s.box(0.0, 0.0, 0.5);
+    dBodySetLinearVel(bob, 0.8, 0.6, 0.0);
+    dJointID j = s.add(dJointCreateUniversal(s.world, 0), bob, nullptr);
+    dJointSetUniversalAnchor(j, 0.0, 0.0, 1.0);
+    dJointSetUniversalAxis1(j, 1.0, 0.0, 0.0);
+    dJointSetUniversalAxis2(j, 0.0, 1.0, 0.0);
+    dJointSetUniversalParam(j, dParamLoStop2, -0.25);
+    dJointSetUniversalParam(j, dParamHiStop2, 0.25);
+  };
+  auto probe = [](OdeScene& s) {
+    dVector3 a1, a2;
+    dJointGetUniversalAnchor(s.joints[0], a1);
+    dJointGetUniversalAnchor2(s.joints[0], a2);
+    return std::vector<double>{dJointGetUniversalAngle1(s.joints[0]),
+                               dJointGetUniversalAngle2(s.joints[0]), distance(a1, a2)};
+  };
+  const TwinRun run = runTwin(build, probe, kSeconds, kStep, 20, highEffort);
+  run.report("universal angle 1 (rad)", 0);
+  run.report("universal angle 2 (rad)", 1);
+  run.reportError("anchor gap (m)", 2);
+  EXPECT_GT(TwinRun::maxOf(run.direct, 0), 0.2);
+  EXPECT_LT(run.maxDifference(0), 0.03);
+  EXPECT_LT(run.maxDifference(1), 0.03);
+  EXPECT_LT(TwinRun::maxOf(run.block, 1), 0.25 + 0.01);
+  EXPECT_LE(TwinRun::maxOf(run.block, 2), TwinRun::maxOf(run.quick, 2));
+}
+
+// A fixed joint welds a second body under a ball-jointed first one: the
+// pair swings as one rigid pendulum.
+TEST(OdeJoints, FixedWeldSwingsAsOneBody) {
+  auto build = [](OdeScene& s) {
+    dBodyID a = s.box(0.3, 0.0, 1.0);
+    dBodyID b = s.box(0.6, 0.0, 1.0, 3.0);
+    dJointID top = s.add(dJointCreateBall(s.world, 0), a, nullptr);
+    dJointSetBallAnchor(top, 0.0, 0.0, 1.0);
+    dJointID weld = s.add(dJointCreateFixed(s.world, 0), a, b);
+    dJointSetFixed(weld);
+  };
+  auto probe = [](OdeScene& s) {
+    const dReal* pa = dBodyGetPosition(s.bodies[0]);
+    const dReal* pb = dBodyGetPosition(s.bodies[1]);
+    return std::vector<double>{pb[2], std::abs(distance(pa, pb) - 0.3)};
+  };
+  const TwinRun run = runTwin(build, probe, kSeconds, kStep, 20, highEffort);
+  run.report("welded body z (m)", 0);
+  run.reportError("weld stretch (m)", 1);
+  EXPECT_LT(run.maxDifference(0), 0.02);
+  EXPECT_LE(TwinRun::maxOf(run.block, 1), TwinRun::maxOf(run.quick, 1));
+}
+
+// DBall keeps two anchors at their distance: a pendulum on a rod.
+TEST(OdeJoints, DBallRodPendulum) {
+  auto build = [](OdeScene& s) {
+    dBodyID bob = s.box(0.6, 0.0, 0.8);
+    dJointID j = s.add(dJointCreateDBall(s.world, 0), bob, nullptr);
+    dJointSetDBallAnchor1(j, 0.6, 0.0, 0.8);
+    dJointSetDBallAnchor2(j, 0.0, 0.0, 1.0);
+  };
+  auto probe = [](OdeScene& s) {
+    const dReal* p = dBodyGetPosition(s.bodies[0]);
+    dVector3 a1, a2;
+    dJointGetDBallAnchor1(s.joints[0], a1);
+    dJointGetDBallAnchor2(s.joints[0], a2);
+    return std::vector<double>{p[0], p[2],
+                               std::abs(distance(a1, a2) - dJointGetDBallDistance(s.joints[0]))};
+  };
+  const TwinRun run = runTwin(build, probe, kSeconds, kStep, 20, highEffort);
+  run.report("bob x (m)", 0);
+  run.report("bob z (m)", 1);
+  run.reportError("rod length error (m)", 2);
+  EXPECT_LT(run.maxDifference(0), 0.02);
+  EXPECT_LT(run.maxDifference(1), 0.02);
+  EXPECT_LE(TwinRun::maxOf(run.block, 2), TwinRun::maxOf(run.quick, 2));
+}
+
+// A null joint constrains nothing: the body is a projectile.
+TEST(OdeJoints, NullJointLeavesAProjectile) {
+  OdeScene s;
+  dBodyID b = s.box(0.0, 0.0, 0.0);
+  dBodySetLinearVel(b, 1.0, 0.0, 4.0);
+  s.add(dJointCreateNull(s.world, 0), b, nullptr);
+  const int steps = 240;
+  for (int k = 0; k < steps; ++k)
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  const dReal* p = dBodyGetPosition(b);
+  const double t = steps * kStep;
+  // Semi-implicit Euler over sub-steps h: z = v t - g t^2 / 2 - g h t / 2.
+  const double h = kStep / dWorldGetBlockSubsteps(s.world);
+  EXPECT_EQ(dWorldGetBlockSubsteps(s.world), 10);  // ODE's 20 iterations / 2
+  EXPECT_NEAR(p[0], 1.0 * t, 1e-9);
+  EXPECT_NEAR(p[2], 4.0 * t - 0.5 * 9.81 * t * t - 0.5 * 9.81 * h * t, 1e-9);
+  dBlockStepStats stats;
+  ASSERT_EQ(dWorldGetBlockStepStats(s.world, &stats), 1);
+  EXPECT_EQ(stats.stepper, dBlockStepperBlockstep);
+}
+
+// dJointFeedback: a 2 kg mass hanging at rest on a hinge feels m g up.
+TEST(OdeJoints, HingeFeedbackIsWeight) {
+  OdeScene s;
+  dBodyID bob = s.box(0.0, 0.0, 0.5, 2.0);
+  dJointID j = s.add(dJointCreateHinge(s.world, 0), bob, nullptr);
+  dJointSetHingeAnchor(j, 0.0, 0.0, 1.0);
+  dJointSetHingeAxis(j, 1.0, 0.0, 0.0);
+  dJointFeedback fb{};
+  dJointSetFeedback(j, &fb);
+  for (int k = 0; k < 120; ++k)
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  EXPECT_NEAR(fb.f1[2], 2.0 * 9.81, 0.01 * 2.0 * 9.81);
+  EXPECT_NEAR(fb.f1[0], 0.0, 1e-3);
+  EXPECT_NEAR(fb.f1[1], 0.0, 1e-3);
+  // Torque about the body's centre: the force acts 0.5 m above it.
+  EXPECT_NEAR(std::hypot(fb.t1[0], fb.t1[1]), 0.0, 1e-3);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_EQ(fb.f2[i], 0.0);  // no body2
+}
+
+}  // namespace
+}  // namespace blockstep::test
