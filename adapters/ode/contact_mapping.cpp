@@ -75,7 +75,10 @@ bool sameSurface(const ContactSurface& a, const ContactSurface& b) {
          a.frictionDir1 == b.frictionDir1 && a.rolling == b.rolling && a.spinning == b.spinning &&
          a.restitution == b.restitution && a.restitutionThreshold == b.restitutionThreshold &&
          a.softness.mode == b.softness.mode && a.softness.erp == b.softness.erp &&
-         a.softness.cfm == b.softness.cfm && a.slop == b.slop &&
+         a.softness.cfm == b.softness.cfm && a.softness.stiffness == b.softness.stiffness &&
+         a.softness.damping == b.softness.damping && a.softness.hertz == b.softness.hertz &&
+         a.softness.stepFraction == b.softness.stepFraction &&
+         a.softness.dampingRatio == b.softness.dampingRatio && a.slop == b.slop &&
          a.maxCorrectingVelocity == b.maxCorrectingVelocity && a.motion1 == b.motion1 &&
          a.motion2 == b.motion2 && a.motionN == b.motionN && a.slip1 == b.slip1 &&
          a.slip2 == b.slip2;

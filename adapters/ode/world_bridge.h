@@ -15,12 +15,11 @@
 //
 // ERP and CFM: in ODE a pair (ERP, CFM) chosen for step h is a spring
 // k = ERP / (h CFM) and damper d = (1 - ERP) / CFM (ODE manual, "How to use
-// ERP and CFM"). When the solver runs sub-steps with a rigid-row softness
-// (SolverSettings::rigidJointSoftness), rows with CFM at or below ODE's
-// default 1e-5 count as rigid and take that softness; a larger CFM is the
-// program asking for a soft joint, and becomes that spring (the same
-// stiffness whatever the sub-step). Without sub-step softness, rows keep
-// the program's (ERP, CFM) as they are.
+// ERP and CFM"). A row whose CFM is above ODE's default 1e-5 is the program
+// asking for a soft joint or contact (soft_cfm): it becomes that spring,
+// the same stiffness whatever the sub-step. Rows at or below 1e-5 count as
+// rigid: under sub-stepping they take the solver's rigid-row softness
+// (SolverSettings::rigidJointSoftness), otherwise they keep (ERP, CFM).
 #pragma once
 
 #include <ode/ode.h>
@@ -109,6 +108,7 @@ class WorldBridge {
   void makeJoint(MappedJoint& m, dJointID j, JointRead& read);
   SolverSettings solverFor(double h) const;
   static Softness jointSoftness(double erp, double cfm, const void* bridge);
+  Softness contactSoftness(double erp, double cfm) const;
 
   dWorldID world_;
   World core_;
