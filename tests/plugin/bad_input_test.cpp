@@ -1,0 +1,195 @@
+// Bad input through ODE's API: a clear message, no crash, and a world that
+// still steps. Unsupported content: said once, and ODE steps that world.
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "ode_twin.h"
+
+namespace blockstep::test {
+namespace {
+
+const auto* const kOde = ::testing::AddGlobalTestEnvironment(new OdeLibrary);
+
+constexpr double kStep = 1.0 / 60.0;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// A pendulum that must still swing correctly after the bad call.
+struct Pendulum {
+  OdeScene s;
+  dBodyID bob = s.box(0.5, 0.0, 1.0);
+  dJointID hinge = s.add(dJointCreateHinge(s.world, 0), bob, nullptr);
+  Pendulum() {
+    dJointSetHingeAnchor(hinge, 0.0, 0.0, 1.0);
+    dJointSetHingeAxis(hinge, 0.0, 1.0, 0.0);
+  }
+  void expectSwingsOnItsHinge(int steps = 60) {
+    for (int k = 0; k < steps; ++k)
+      ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+    dVector3 a1, a2;
+    dJointGetHingeAnchor(hinge, a1);
+    dJointGetHingeAnchor2(hinge, a2);
+    EXPECT_LT(distance(a1, a2), 1e-3);
+    EXPECT_GT(std::abs(dJointGetHingeAngle(hinge)), 0.1);
+    const dReal* p = dBodyGetPosition(bob);
+    for (int i = 0; i < 3; ++i)
+      EXPECT_TRUE(std::isfinite(p[i]));
+  }
+};
+
+TEST(OdeBadInput, JointAttachingABodyToItselfIsRefused) {
+  Pendulum p;
+  dJointID ball = dJointCreateBall(p.s.world, 0);
+  testing::internal::CaptureStderr();
+  dJointAttach(ball, p.bob, p.bob);  // ODE itself aborts here
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("cannot attach a body to itself"), std::string::npos) << err;
+  EXPECT_EQ(dJointGetBody(ball, 0), nullptr);
+  p.expectSwingsOnItsHinge();
+}
+
+TEST(OdeBadInput, NanOrNegativeMassIsRefused) {
+  Pendulum p;
+  dMass before;
+  dBodyGetMass(p.bob, &before);
+  dMass bad = before;
+  bad.mass = kNaN;
+  testing::internal::CaptureStderr();
+  dBodySetMass(p.bob, &bad);  // ODE would take it and step into NaN
+  bad.mass = -1.0;
+  dBodySetMass(p.bob, &bad);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("mass nan is not positive and finite"), std::string::npos) << err;
+  EXPECT_NE(err.find("mass -1 is not positive"), std::string::npos) << err;
+  dMass after;
+  dBodyGetMass(p.bob, &after);
+  EXPECT_EQ(after.mass, before.mass);
+  p.expectSwingsOnItsHinge();
+}
+
+TEST(OdeBadInput, ZeroOrNonFiniteAxisIsRefused) {
+  Pendulum p;
+  testing::internal::CaptureStderr();
+  dJointSetHingeAxis(p.hinge, 0.0, 0.0, 0.0);  // ODE itself aborts here
+  dJointSetHingeAxis(p.hinge, kNaN, 0.0, 1.0);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("dJointSetHingeAxis(0, 0, 0): the axis must be finite and non-zero"),
+            std::string::npos)
+      << err;
+  dVector3 axis;
+  dJointGetHingeAxis(p.hinge, axis);
+  EXPECT_NEAR(axis[1], 1.0, 1e-12);
+  p.expectSwingsOnItsHinge();
+}
+
+TEST(OdeBadInput, NonFiniteStateRefusesTheStepAndKeepsTheWorld) {
+  Pendulum p;
+  dBodyID other = p.s.box(3.0, 0.0, 1.0);
+  dBodySetLinearVel(other, kNaN, 0.0, 0.0);
+  const dReal* x = dBodyGetPosition(p.bob);
+  const double before[3] = {x[0], x[1], x[2]};
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(dWorldBlockStep(p.s.world, kStep), 0);
+  EXPECT_EQ(dWorldBlockStep(p.s.world, kStep), 0);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("non-finite position, orientation, velocity"), std::string::npos) << err;
+  // Said once per world, not once per step.
+  EXPECT_EQ(err.find("non-finite", err.find("non-finite") + 1), std::string::npos) << err;
+  EXPECT_NE(std::string(dWorldGetBlockStepMessage(p.s.world)).find("non-finite"),
+            std::string::npos);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_EQ(x[i], before[i]);
+  // Fixed by the program, the world steps again.
+  dBodySetLinearVel(other, 0.0, 0.0, 0.0);
+  p.expectSwingsOnItsHinge();
+}
+
+TEST(OdeBadInput, AbsurdStepSizesAreRefused) {
+  Pendulum p;
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(dWorldBlockStep(p.s.world, 0.0), 0);
+  EXPECT_EQ(dWorldBlockStep(p.s.world, -kStep), 0);
+  EXPECT_EQ(dWorldBlockStep(p.s.world, kNaN), 0);
+  EXPECT_EQ(dWorldBlockStep(p.s.world, 16.0), 0);  // milliseconds given as seconds
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("step size"), std::string::npos) << err;
+  p.expectSwingsOnItsHinge();
+}
+
+TEST(OdeBadInput, BodyDestroyedMidRunLeavesItsJointDetached) {
+  OdeScene s;
+  dBodyID a = s.box(0.3, 0.0, 1.0);
+  dBodyID b = s.box(0.6, 0.0, 1.0);
+  dJointID top = s.add(dJointCreateHinge(s.world, 0), a, nullptr);
+  dJointSetHingeAnchor(top, 0.0, 0.0, 1.0);
+  dJointSetHingeAxis(top, 0.0, 1.0, 0.0);
+  dJointID mid = s.add(dJointCreateBall(s.world, 0), a, b);
+  dJointSetBallAnchor(mid, 0.45, 0.0, 1.0);
+  for (int k = 0; k < 30; ++k)
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  dBodyDestroy(b);  // ODE detaches `mid` from it
+  for (int k = 0; k < 30; ++k)
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  // `a` swings on alone: its hinge holds.
+  dVector3 a1, a2;
+  dJointGetHingeAnchor(top, a1);
+  dJointGetHingeAnchor2(top, a2);
+  EXPECT_LT(distance(a1, a2), 1e-3);
+  dBlockStepStats stats;
+  ASSERT_EQ(dWorldGetBlockStepStats(s.world, &stats), 1);
+  EXPECT_EQ(stats.stepper, dBlockStepperBlockstep);
+  // Reattached to the world, the ball joint pins `a` where its anchor is.
+  dJointAttach(mid, a, nullptr);
+  dJointSetBallAnchor(mid, dBodyGetPosition(a)[0], 0.0, dBodyGetPosition(a)[2]);
+  for (int k = 0; k < 30; ++k)
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  dJointGetBallAnchor(mid, a1);
+  dJointGetBallAnchor2(mid, a2);
+  EXPECT_LT(distance(a1, a2), 1e-3);
+}
+
+TEST(OdeBadInput, WorldDestroyedWithGroupedJointsIsForgotten) {
+  dJointGroupID group = dJointGroupCreate(0);
+  {
+    OdeScene s;
+    dBodyID b = s.box(0.0, 0.0, 1.0);
+    dJointID j = dJointCreateBall(s.world, group);
+    dJointAttach(j, b, nullptr);
+    dJointSetBallAnchor(j, 0.0, 0.0, 1.5);
+    for (int k = 0; k < 10; ++k)
+      ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  }  // dWorldDestroy with a grouped joint alive
+  dJointGroupEmpty(group);
+  dJointGroupDestroy(group);
+  Pendulum p;  // a new world may reuse the addresses
+  p.expectSwingsOnItsHinge();
+}
+
+// A joint kind without a mapping is said once, and that world steps with
+// ODE's quickstep; the stats say so.
+TEST(OdeBadInput, UnsupportedJointFallsBackToOdeOnce) {
+  Pendulum p;
+  dJointID motor = dJointCreateAMotor(p.s.world, 0);
+  dJointAttach(motor, p.bob, nullptr);
+  dJointSetAMotorNumAxes(motor, 1);
+  dJointSetAMotorAxis(motor, 0, 1, 0.0, 1.0, 0.0);
+  testing::internal::CaptureStderr();
+  for (int k = 0; k < 5; ++k)
+    ASSERT_EQ(dWorldBlockStep(p.s.world, kStep), 1);
+  const std::string err = testing::internal::GetCapturedStderr();
+  const std::string said = "angular motor (AMotor) joint";
+  EXPECT_NE(err.find(said), std::string::npos) << err;
+  EXPECT_EQ(err.find(said, err.find(said) + 1), std::string::npos) << "said more than once";
+  EXPECT_NE(err.find("stepped by ODE"), std::string::npos) << err;
+  dBlockStepStats stats;
+  ASSERT_EQ(dWorldGetBlockStepStats(p.s.world, &stats), 1);
+  EXPECT_EQ(stats.stepper, dBlockStepperOde);
+  // Once the motor is gone, blockstep steps again.
+  dJointDestroy(motor);
+  ASSERT_EQ(dWorldBlockStep(p.s.world, kStep), 1);
+  ASSERT_EQ(dWorldGetBlockStepStats(p.s.world, &stats), 1);
+  EXPECT_EQ(stats.stepper, dBlockStepperBlockstep);
+}
+
+}  // namespace
+}  // namespace blockstep::test
