@@ -119,6 +119,37 @@ void readUniversal(dJointID j, BodyId b1, BodyId b2, JointRead& out, const Joint
   out.coordinate[1] = dJointGetUniversalAngle1(j);  // core angle 2
 }
 
+// Hinge2 (a steered, sprung wheel): axis1 (steering and suspension) is
+// fixed in body1, axis2 (the axle) in body2. It is the core's universal
+// joint with the axes swapped as for ODE's universal, plus a suspension
+// along ODE's axis1 (SuspensionERP / SuspensionCFM). ODE's limit-motor 1
+// acts on the steering angle, 2 on the axle.
+void readHinge2(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 a1, a2, axis1, axis2;
+  dJointGetHinge2Anchor(j, a1);
+  dJointGetHinge2Anchor2(j, a2);
+  dJointGetHinge2Axis1(j, axis1);
+  dJointGetHinge2Axis2(j, axis2);
+  UniversalJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.anchor = vec(a1);
+  d.axis1 = vec(axis2);
+  d.axis2 = vec(axis1);
+  readAxis(j, dJointGetHinge2Param, dParamGroup, d.limit1, d.motor1);
+  readAxis(j, dJointGetHinge2Param, 0, d.limit2, d.motor2);
+  d.suspension = true;
+  d.suspensionSoftness = w.of(dJointGetHinge2Param(j, dParamSuspensionERP),
+                              dJointGetHinge2Param(j, dParamSuspensionCFM));
+  out.desc = d;
+  out.geometry.add(vec(a1), true, 1);
+  out.geometry.add(vec(a2), true, 2);
+  out.geometry.add(vec(axis1), false, 1);
+  out.geometry.add(vec(axis2), false, 2);
+  out.coordinateCount = 2;
+  out.coordinate[0] = dJointGetHinge2Angle2(j);  // core angle 1 (axle)
+  out.coordinate[1] = dJointGetHinge2Angle1(j);  // core angle 2 (steering)
+}
+
 // DBall: the anchors keep ODE's set distance (a rod).
 void readDBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
   dVector3 a1, a2;
@@ -208,6 +239,9 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
       break;
     case dJointTypeDBall:
       readDBall(j, body1, body2, out, world);
+      break;
+    case dJointTypeHinge2:
+      readHinge2(j, body1, body2, out, world);
       break;
     case dJointTypeNull:
       out.hasRows = false;

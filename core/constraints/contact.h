@@ -23,11 +23,11 @@ struct ContactSurface {
            // (ODE without dContactApprox1: mu is a force limit)
   };
   Friction friction = Friction::Box;
-  double mu = 0.6;       // along the first tangent (and the second unless mu2 >= 0)
-  double mu2 = -1.0;     // along the second tangent; < 0: same as mu
+  double mu = 0.6;                   // along the first tangent (and the second unless mu2 >= 0)
+  double mu2 = -1.0;                 // along the second tangent; < 0: same as mu
   Vec3 frictionDir1 = Vec3::Zero();  // first tangent (ODE fdir1); zero: any
-  double rolling = 0.0;  // rolling resistance: torque <= rolling * normal force (m)
-  double spinning = 0.0; // about the normal
+  double rolling = 0.0;              // rolling resistance: torque <= rolling * normal force (m)
+  double spinning = 0.0;             // about the normal
   double restitution = 0.0;
   double restitutionThreshold = 0.0;  // m/s: slower impacts do not bounce
   // Softness of the normal rows past the slop (ODE soft_erp, soft_cfm).

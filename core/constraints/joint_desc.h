@@ -83,6 +83,11 @@ struct UniversalJointDesc {
   Vec3 axis2 = Vec3::UnitY();
   Limit limit1, limit2;
   Motor motor1, motor2;
+  // A wheel suspension (ODE's hinge2): the anchors may part along axis2
+  // (fixed in B) as a spring of this softness; the other two directions
+  // stay rigid.
+  bool suspension = false;
+  Softness suspensionSoftness = Softness::erpCfm(0.2, 1e-5);
 };
 
 // Ragdoll shoulder: ball + a cone limiting how far the twist axis swings

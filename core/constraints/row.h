@@ -46,6 +46,7 @@ struct ConstraintRow {
   bool conePair = false;  // this row and the next share one friction disk
   RowBias biasKind = RowBias::Baumgarte;
   bool angular = false;   // torque-like row (for feedback and breaking)
+  bool spring = false;    // a physical spring (Softness::Stiffness): relax leaves it alone
   std::uint8_t slot = 0;  // the joint's stable name for this row: warm starting follows it
 
   static constexpr std::int8_t kNoFriction = -1;

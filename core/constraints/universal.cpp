@@ -3,6 +3,7 @@
 // read from the relative rotation r = FA* FB written as
 // r = Rx(t1) Ry(t2): w = c1 c2, x = s1 c2, y = c1 s2 (half angles), so
 // t1 = 2 atan2(x, w), t2 = 2 atan2(y, w). Limits and motors on both.
+// With a suspension (ODE's hinge2) the anchors may part along axis2.
 #include <cmath>
 
 #include "core/constraints/joint_kinds.h"
@@ -23,6 +24,9 @@ void validateJoint(const UniversalJointDesc& d) {
   validateLimit(d.limit2, "universal joint axis2");
   validateMotor(d.motor1, "universal joint axis1");
   validateMotor(d.motor2, "universal joint axis2");
+  if (d.suspension && !d.suspensionSoftness.valid()) {
+    throw Error("universal joint suspension softness is invalid");
+  }
 }
 
 JointFrames setupJoint(UniversalJointDesc& d, const Body& a, const Body& b) {
@@ -36,7 +40,16 @@ JointFrames setupJoint(UniversalJointDesc& d, const Body& a, const Body& b) {
 }
 
 void buildJointRows(const UniversalJointDesc& d, const JointPose& p, RowWriter& out) {
-  addPointRows(p, d.common.softness, 0, out);
+  if (d.suspension) {
+    // The point part along B's frame axes, the one along axis2 sprung.
+    for (int i = 0; i < 3; ++i) {
+      ConstraintRow& row = out.equality(i);
+      attachedToBAxisRow(p, p.axisB(i), row);
+      row.softness = i == 1 ? &d.suspensionSoftness : &d.common.softness;
+    }
+  } else {
+    addPointRows(p, d.common.softness, 0, out);
+  }
   ConstraintRow& perp = out.equality(3);
   perpendicularRow(p.axisA(0), p.axisB(1), perp);
   perp.softness = &d.common.softness;

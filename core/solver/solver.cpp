@@ -30,9 +30,20 @@ void applyImpulse(const ConstraintRow& row, double dP, SolverBody& a, SolverBody
   b.w += dP * row.invIangB;
 }
 
+// Relax sweeps remove the velocity that position correction added. A row
+// that is a physical spring (stiffness and damping in absolute units, as
+// ODE's (ERP, CFM) read at the program's step) corrects nothing: its force
+// is real, so relax leaves its velocity alone (residual 0). Relaxing it
+// let it give way by gamma P every sub-step with no spring force pushing
+// back: an ODE hinge2 suspension sagged 166 mm where ODE's spring sags 2.
+inline bool relaxSkips(const ConstraintRow& row, bool useBias) {
+  return !useBias && row.spring;
+}
+
 // One row solved alone with its accumulated impulse clamped to [lo, hi]
 // (section 4.3: clamp the total, never the increment).
 void solveRow(ConstraintRow& row, bool useBias, SolverBody& a, SolverBody& b) {
+  if (relaxSkips(row, useBias)) return;
   const double bias = useBias ? row.bias : row.biasRelax;
   const double residual = rowVelocity(row, a, b) + bias + row.gamma * row.impulse;
   const double next = std::clamp(row.impulse - residual * row.effMass, row.lo, row.hi);
@@ -430,6 +441,7 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
     if (row.frictionOf == ConstraintRow::kNoFriction) {
       row.impulse = std::clamp(row.impulse, row.lo, row.hi);
     }
+    row.spring = row.softness && row.softness->mode == Softness::Mode::Stiffness && row.gamma > 0.0;
     row.softness = nullptr;
   }
 
@@ -496,6 +508,7 @@ void Solver::solveCoupledRow(int rowIndex, bool useBias, ConstraintRow* eq, int 
                              SolverBody& b) {
   ConstraintRow& row = rows_[rowIndex];
   const BoundedCoupling& c = coupling_[rowIndex];
+  if (relaxSkips(row, useBias)) return;
   const double bias = useBias ? row.bias : row.biasRelax;
   const double residual = rowVelocity(row, a, b) + bias + row.gamma * row.impulse;
   const double next = std::clamp(row.impulse - residual * c.effMass, row.lo, row.hi);
@@ -552,7 +565,9 @@ void Solver::solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& 
   double dP[6];
   for (int i = 0; i < ne; ++i) {
     const double bias = useBias ? eq[i].bias : eq[i].biasRelax;
-    dP[i] = -(rowVelocity(eq[i], a, b) + bias + eq[i].gamma * eq[i].impulse);
+    dP[i] = relaxSkips(eq[i], useBias)
+                ? 0.0
+                : -(rowVelocity(eq[i], a, b) + bias + eq[i].gamma * eq[i].impulse);
   }
   ldltSolve(blk.ldl, ne, dP);
   if (blk.unilateral) {

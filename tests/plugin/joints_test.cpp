@@ -224,6 +224,48 @@ TEST(OdeJoints, UniversalAnglesAndStops) {
   EXPECT_LE(TwinRun::maxOf(run.block, 2), TwinRun::maxOf(run.quick, 2));
 }
 
+// Hinge2, a car's front wheel: the chassis is held by a fixed joint, the
+// wheel hangs on a soft suspension along the steering axis, is steered
+// by a motor toward a stop and driven about its axle.
+TEST(OdeJoints, Hinge2SteersSpringsAndDrives) {
+  auto build = [](OdeScene& s) {
+    dBodyID chassis = s.box(0.0, 0.0, 1.0, 20.0, 0.5);
+    dBodyID wheel = s.box(0.0, 0.4, 1.0, 2.0, 0.3);
+    dJointID weld = s.add(dJointCreateFixed(s.world, 0), chassis, nullptr);
+    dJointSetFixed(weld);
+    dJointID j = s.add(dJointCreateHinge2(s.world, 0), chassis, wheel);
+    dJointSetHinge2Anchor(j, 0.0, 0.4, 1.0);
+    const dReal steer[3] = {0.0, 0.0, 1.0}, axle[3] = {0.0, 1.0, 0.0};
+    dJointSetHinge2Axes(j, steer, axle);
+    dJointSetHinge2Param(j, dParamSuspensionERP, 0.4);
+    dJointSetHinge2Param(j, dParamSuspensionCFM, 1e-2);
+    dJointSetHinge2Param(j, dParamVel, 1.0);
+    dJointSetHinge2Param(j, dParamFMax, 50.0);
+    dJointSetHinge2Param(j, dParamLoStop, -0.3);
+    dJointSetHinge2Param(j, dParamHiStop, 0.3);
+    dJointSetHinge2Param(j, dParamVel2, 6.0);
+    dJointSetHinge2Param(j, dParamFMax2, 20.0);
+  };
+  auto probe = [](OdeScene& s) {
+    dVector3 a1, a2;
+    dJointGetHinge2Anchor(s.joints[1], a1);
+    dJointGetHinge2Anchor2(s.joints[1], a2);
+    return std::vector<double>{dJointGetHinge2Angle1(s.joints[1]),
+                               dJointGetHinge2Angle2Rate(s.joints[1]), a1[2] - a2[2]};
+  };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("steering angle (rad)", 0);
+  run.report("axle speed (rad/s)", 1);
+  run.report("suspension sag (m)", 2);
+  EXPECT_NEAR(run.block.back()[0], 0.3, 0.01);  // steered onto its stop
+  EXPECT_NEAR(run.block.back()[1], 6.0, 0.05);  // driven at the motor's speed
+  EXPECT_LT(run.maxDifference(0), 0.02);
+  EXPECT_LT(run.maxDifference(1), 0.1);
+  // The sag is the spring's: ODE's value within 5%.
+  EXPECT_GT(run.direct.back()[2], 1e-3);
+  EXPECT_NEAR(run.block.back()[2], run.direct.back()[2], 0.05 * run.direct.back()[2]);
+}
+
 // A fixed joint welds a second body under a ball-jointed first one: the
 // pair swings as one rigid pendulum.
 TEST(OdeJoints, FixedWeldSwingsAsOneBody) {

@@ -115,6 +115,12 @@ inline TwinRun runTwin(const std::function<void(OdeScene&)>& build,
       stepWith(s, scene.world, h);
       out.push_back(probe(scene));
     }
+    if (s == Stepper::Block) {
+      // Blockstep itself stepped the world, not ODE's stepper as a fallback.
+      dBlockStepStats stats;
+      EXPECT_EQ(dWorldGetBlockStepStats(scene.world, &stats), 1);
+      EXPECT_EQ(stats.stepper, dBlockStepperBlockstep) << dWorldGetBlockStepMessage(scene.world);
+    }
   }
   return run;
 }

@@ -34,6 +34,18 @@ inline void attachedAxisRow(const JointPose& p, const Vec3& n, ConstraintRow& ro
   row.angular = false;
 }
 
+// C = n . (pB - pA) with n fixed in body B (hinge2's suspension axis):
+// dC/dt gains d . (wB x n) = wB . (n x d), so B's angular term is
+// (rB - d) x n.
+inline void attachedToBAxisRow(const JointPose& p, const Vec3& n, ConstraintRow& row) {
+  row.linA = -n;
+  row.angA = -p.rA.cross(n);
+  row.linB = n;
+  row.angB = (p.rB - p.d).cross(n);
+  row.C = n.dot(p.d);
+  row.angular = false;
+}
+
 // Relative rotation rate about world axis a: dC/dt = (wB - wA) . a.
 inline void angularAxisRow(const Vec3& a, double C, ConstraintRow& row) {
   row.linA.setZero();
