@@ -252,11 +252,14 @@ void WorldBridge::autoDisable(const WorldRecord& record, double h) {
     BodySleep& s = mapBody(b).sleep;
     const bool enabled = dBodyIsEnabled(b) != 0;
     const int samples = dBodyGetAutoDisableAverageSamplesCount(b);
+    if (s.moved && s.lastStep != h) s.moved = false;  // the step size changed
     if (!s.initialized || (s.wasDisabled && enabled) || s.sampleCount != samples) {
       // New, woken by the program, or resampled: start counting afresh.
+      // ODE sets a new body's countdown from the world's defaults when it
+      // is created, and dBodySetAutoDisableSteps does not restart it.
+      s.stepsLeft = s.initialized ? dBodyGetAutoDisableSteps(b) : dWorldGetAutoDisableSteps(world_);
+      s.timeLeft = s.initialized ? dBodyGetAutoDisableTime(b) : dWorldGetAutoDisableTime(world_);
       s.initialized = true;
-      s.stepsLeft = dBodyGetAutoDisableSteps(b);
-      s.timeLeft = dBodyGetAutoDisableTime(b);
       s.sampleCount = samples;
       s.linear.assign(static_cast<std::size_t>(samples), Vec3::Zero());
       s.angular.assign(static_cast<std::size_t>(samples), Vec3::Zero());
@@ -267,8 +270,22 @@ void WorldBridge::autoDisable(const WorldRecord& record, double h) {
     if (!enabled || !dBodyGetAutoDisableFlag(b) || dBodyGetNumJoints(b) == 0 || samples <= 0) {
       continue;
     }
-    s.linear[s.next] = vec(dBodyGetLinearVel(b));
-    s.angular[s.next] = vec(dBodyGetAngularVel(b));
+    // The sample is the body's motion over our last step (displacement /
+    // h) when we stepped it, else its velocity. The sub-stepped solver's
+    // end-of-step velocity carries the compliance of its soft rows (a box
+    // resting on three ODE contact points reports 4 mm/s and 0.036 rad/s
+    // while it does not move), which ODE's default thresholds (0.01) would
+    // never call idle.
+    Vec3 linear = vec(dBodyGetLinearVel(b)), angular = vec(dBodyGetAngularVel(b));
+    if (s.moved) {
+      const Quat q(dBodyGetQuaternion(b)[0], dBodyGetQuaternion(b)[1], dBodyGetQuaternion(b)[2],
+                   dBodyGetQuaternion(b)[3]);
+      linear = (vec(dBodyGetPosition(b)) - s.lastX) / s.lastStep;
+      const Eigen::AngleAxisd turn(q * s.lastQ.conjugate());
+      angular = turn.axis() * (turn.angle() / s.lastStep);
+    }
+    s.linear[s.next] = linear;
+    s.angular[s.next] = angular;
     if (++s.next >= samples) {
       s.next = 0;
       s.ready = true;
@@ -421,6 +438,11 @@ void WorldBridge::writeBack(const WorldRecord& record) {
     dBodySetAngularVel(b, w.x(), w.y(), w.z());
     dBodySetForce(b, 0, 0, 0);
     dBodySetTorque(b, 0, 0, 0);
+    BodySleep& sleep = mapBody(b).sleep;
+    sleep.moved = true;
+    sleep.lastX = body.position;
+    sleep.lastQ = body.orientation;
+    sleep.lastStep = step_;
   }
 }
 

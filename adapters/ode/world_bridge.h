@@ -79,6 +79,10 @@ class WorldBridge {
     bool ready = false;
     bool wasDisabled = false;
     bool initialized = false;
+    bool moved = false;  // lastX / lastQ hold the pose after our last step
+    Vec3 lastX = Vec3::Zero();
+    Quat lastQ = Quat::Identity();
+    double lastStep = 0.0;
     std::vector<Vec3> linear, angular;
   };
   struct MappedBody {

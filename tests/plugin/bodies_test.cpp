@@ -1,0 +1,133 @@
+// Body state as ODE defines it, under dWorldBlockStep: damping with its
+// thresholds, auto-disable and waking, kinematic bodies, gravity mode.
+#include <cmath>
+
+#include "ode_twin.h"
+
+namespace blockstep::test {
+namespace {
+
+const auto* const kOde = ::testing::AddGlobalTestEnvironment(new OdeLibrary);
+
+constexpr double kStep = 1.0 / 60.0;
+
+// ODE scales a velocity above its threshold by (1 - scale) after each step.
+TEST(OdeBodies, DampingAsOdeDefinesIt) {
+  OdeScene s;
+  dWorldSetGravity(s.world, 0, 0, 0);
+  dBodyID b = s.box(0.0, 0.0, 0.0);
+  dBodySetLinearVel(b, 2.0, 0.0, 0.0);
+  dBodySetAngularVel(b, 0.0, 0.0, 4.0);
+  dBodySetLinearDamping(b, 0.1);
+  dBodySetAngularDamping(b, 0.2);
+  dBodySetLinearDampingThreshold(b, 1.0);  // below 1 m/s: no more damping
+  dBodySetAngularDampingThreshold(b, 0.0);
+  s.add(dJointCreateNull(s.world, 0), b, nullptr);
+  for (int k = 0; k < 3; ++k)
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  EXPECT_NEAR(dBodyGetLinearVel(b)[0], 2.0 * std::pow(0.9, 3), 1e-12);
+  EXPECT_NEAR(dBodyGetAngularVel(b)[2], 4.0 * std::pow(0.8, 3), 1e-12);
+  for (int k = 0; k < 20; ++k)
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  // 2 * 0.9^7 = 0.957 < 1: damping stopped at the seventh step.
+  EXPECT_NEAR(dBodyGetLinearVel(b)[0], 2.0 * std::pow(0.9, 7), 1e-12);
+}
+
+// A body resting with auto-disable on is disabled after ODE's idle steps,
+// and a body hitting it wakes it, as with dWorldStep.
+TEST(OdeBodies, AutoDisableAndWakeAsDirectSolver) {
+  int disabledAt[2] = {-1, -1};
+  int i = 0;
+  for (Stepper stepper : {Stepper::Direct, Stepper::Block}) {
+    OdeScene s;
+    dSpaceID space = dHashSpaceCreate(0);
+    dJointGroupID contacts = dJointGroupCreate(0);
+    dCreatePlane(space, 0, 0, 1, 0);
+    dBodyID b = s.box(0.0, 0.0, 0.1, 1.0, 0.2);
+    dGeomSetBody(dCreateBox(space, 0.2, 0.2, 0.2), b);
+    dBodySetAutoDisableFlag(b, 1);
+    dBodySetAutoDisableSteps(b, 20);
+    dBodySetAutoDisableTime(b, 0.0);
+    struct Ctx {
+      dWorldID w;
+      dJointGroupID g;
+    } ctx{s.world, contacts};
+    auto near = [](void* data, dGeomID g1, dGeomID g2) {
+      auto* c = static_cast<Ctx*>(data);
+      dContact contact[4];
+      const int n = dCollide(g1, g2, 4, &contact[0].geom, sizeof(dContact));
+      for (int k = 0; k < n; ++k) {
+        contact[k].surface.mode = dContactApprox1;
+        contact[k].surface.mu = 0.5;
+        dJointAttach(dJointCreateContact(c->w, c->g, &contact[k]), dGeomGetBody(g1),
+                     dGeomGetBody(g2));
+      }
+    };
+    dBodyID ball = nullptr;
+    bool woke = false;
+    for (int f = 0; f < 120; ++f) {
+      if (f == 80) {  // drop a ball on it
+        ball = dBodyCreate(s.world);
+        dMass m;
+        dMassSetSphereTotal(&m, 1.0, 0.05);
+        dBodySetMass(ball, &m);
+        dBodySetPosition(ball, 0.0, 0.0, 0.3);
+        dGeomSetBody(dCreateSphere(space, 0.05), ball);
+      }
+      dSpaceCollide(space, &ctx, near);
+      stepWith(stepper, s.world, kStep);
+      dJointGroupEmpty(contacts);
+      if (disabledAt[i] < 0 && !dBodyIsEnabled(b)) disabledAt[i] = f;
+      if (f > 80 && dBodyIsEnabled(b)) woke = true;
+      if (f == 79) {
+        EXPECT_FALSE(dBodyIsEnabled(b));
+        EXPECT_EQ(dBodyGetLinearVel(b)[2], 0.0);  // ODE zeroes a disabled body's velocity
+      }
+    }
+    // Hit by the ball, the box woke up; it keeps resting on the ground.
+    EXPECT_TRUE(woke);
+    EXPECT_NEAR(dBodyGetPosition(b)[2], 0.1, 2e-3);
+    dJointGroupDestroy(contacts);
+    dSpaceDestroy(space);
+    ++i;
+  }
+  std::printf("  disabled after frame: dWorldStep %d, blockstep %d\n", disabledAt[0],
+              disabledAt[1]);
+  ASSERT_GE(disabledAt[0], 0);
+  EXPECT_NEAR(disabledAt[1], disabledAt[0], 3);
+}
+
+TEST(OdeBodies, WokenByATouchingBody) {
+  OdeScene s;
+  dBodyID a = s.box(0.0, 0.0, 1.0);
+  dBodyID b = s.box(0.3, 0.0, 1.0);
+  dJointID j = s.add(dJointCreateBall(s.world, 0), a, b);
+  dJointSetBallAnchor(j, 0.15, 0.0, 1.0);
+  dBodyDisable(b);
+  ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  // The enabled body's joint woke the disabled one, and both fell.
+  EXPECT_TRUE(dBodyIsEnabled(b));
+  EXPECT_LT(dBodyGetLinearVel(b)[2], 0.0);
+}
+
+TEST(OdeBodies, KinematicAndGravityModes) {
+  OdeScene s;
+  dBodyID k = s.box(0.0, 0.0, 0.0);
+  dBodySetKinematic(k);
+  dBodySetLinearVel(k, 1.0, 0.0, 0.0);
+  dBodyID floating = s.box(2.0, 0.0, 0.0);
+  dBodySetGravityMode(floating, 0);
+  dBodyID pulled = s.box(0.0, 0.5, 0.0);
+  dJointID j = s.add(dJointCreateSlider(s.world, 0), pulled, k);  // follows the kinematic body
+  dJointSetSliderAxis(j, 0.0, 0.0, 1.0);
+  for (int f = 0; f < 60; ++f)
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  EXPECT_NEAR(dBodyGetPosition(k)[0], 1.0, 1e-9);  // moved by its velocity only
+  EXPECT_NEAR(dBodyGetPosition(k)[2], 0.0, 1e-12);
+  EXPECT_NEAR(dBodyGetPosition(floating)[2], 0.0, 1e-12);
+  EXPECT_NEAR(dBodyGetPosition(pulled)[0], 1.0, 1e-3);  // carried along x
+  EXPECT_LT(dBodyGetPosition(pulled)[2], -1.0);         // free to fall along z
+}
+
+}  // namespace
+}  // namespace blockstep::test
