@@ -13,8 +13,11 @@ std::string str(const Vec3& v) {
          ")";
 }
 
-void validateSoftness(const Softness& s, const std::string& what) {
+// `what` is `prefix` + `suffix`, joined only when there is an error to
+// report: validation runs on every joint update, and must not allocate.
+void validateSoftness(const Softness& s, const char* prefix, const char* suffix) {
   if (!s.valid()) {
+    const std::string what = std::string(prefix) + suffix;
     if (s.mode == Softness::Mode::ErpCfm) {
       throw Error(what + ": ERP must be in [0, 1] and CFM >= 0 and finite (got ERP " +
                   std::to_string(s.erp) + ", CFM " + std::to_string(s.cfm) + ")");
@@ -46,6 +49,11 @@ Vec3 requireAxis(const Vec3& axis, const char* what) {
 }
 
 void validateCommon(const JointCommon& c, const char* kind) {
+  validateSoftness(c.softness, kind, " joint softness");
+  if (!(c.bodyA == kWorldBody && c.bodyB == kWorldBody) && c.bodyA != c.bodyB &&
+      c.breakForce > 0.0 && c.breakTorque > 0.0) {
+    return;  // the common case, without building any message
+  }
   const std::string k = std::string(kind) + " joint";
   if (c.bodyA == kWorldBody && c.bodyB == kWorldBody) {
     throw Error(k + " attaches the world to itself: give at least one body");
@@ -53,7 +61,6 @@ void validateCommon(const JointCommon& c, const char* kind) {
   if (c.bodyA == c.bodyB) {
     throw Error(k + " attaches body " + std::to_string(c.bodyA) + " to itself");
   }
-  validateSoftness(c.softness, k + " softness");
   if (!(c.breakForce > 0.0) || !(c.breakTorque > 0.0) || std::isnan(c.breakForce) ||
       std::isnan(c.breakTorque)) {
     throw Error(k + ": break force and torque must be > 0 (use infinity for unbreakable)");
@@ -66,7 +73,7 @@ void validateLimit(const Limit& l, const char* what) {
     throw Error(std::string(what) + " limit needs finite lo <= hi (got " + std::to_string(l.lo) +
                 ", " + std::to_string(l.hi) + ")");
   }
-  validateSoftness(l.softness, std::string(what) + " limit softness");
+  validateSoftness(l.softness, what, " limit softness");
   if (!(l.bounce >= 0.0 && l.bounce <= 1.0)) {
     throw Error(std::string(what) + " limit bounce must be in [0, 1] (got " +
                 std::to_string(l.bounce) + ")");

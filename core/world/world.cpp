@@ -23,6 +23,11 @@ std::string jointName(JointId id) {
 void requireFiniteVec(const Vec3& v, const std::string& what) {
   if (!v.allFinite()) throw Error(what + " is not finite");
 }
+// The per-body form builds its message only on failure: the ODE adapter
+// sets every body's state every step, and steps must not allocate.
+void requireFiniteVec(const Vec3& v, BodyId id, const char* what) {
+  if (!v.allFinite()) throw Error(bodyName(id) + " " + what + " is not finite");
+}
 
 void validateInertia(double mass, const Mat3& inertia, const std::string& who) {
   if (!(mass > 0.0) || !std::isfinite(mass)) {
@@ -149,7 +154,7 @@ void World::destroyBody(BodyId id) {
 }
 
 void World::setPosition(BodyId id, const Vec3& p) {
-  requireFiniteVec(p, bodyName(id) + " position");
+  requireFiniteVec(p, id, "position");
   mutableBody(id).position = p;
 }
 
@@ -161,13 +166,13 @@ void World::setOrientation(BodyId id, const Quat& q) {
 }
 
 void World::setLinearVelocity(BodyId id, const Vec3& v) {
-  requireFiniteVec(v, bodyName(id) + " linear velocity");
+  requireFiniteVec(v, id, "linear velocity");
   Body& b = mutableBody(id);
   if (b.type != BodyType::Static) b.linearVelocity = v;
 }
 
 void World::setAngularVelocity(BodyId id, const Vec3& w) {
-  requireFiniteVec(w, bodyName(id) + " angular velocity");
+  requireFiniteVec(w, id, "angular velocity");
   Body& b = mutableBody(id);
   if (b.type != BodyType::Static) b.angularVelocity = w;
 }
@@ -221,18 +226,18 @@ void World::setMaxAngularSpeed(BodyId id, double maxSpeed) {
 }
 
 void World::addForce(BodyId id, const Vec3& f) {
-  requireFiniteVec(f, bodyName(id) + " force");
+  requireFiniteVec(f, id, "force");
   mutableBody(id).force += f;
 }
 
 void World::addTorque(BodyId id, const Vec3& t) {
-  requireFiniteVec(t, bodyName(id) + " torque");
+  requireFiniteVec(t, id, "torque");
   mutableBody(id).torque += t;
 }
 
 void World::addForceAtPoint(BodyId id, const Vec3& f, const Vec3& p) {
-  requireFiniteVec(f, bodyName(id) + " force");
-  requireFiniteVec(p, bodyName(id) + " force point");
+  requireFiniteVec(f, id, "force");
+  requireFiniteVec(p, id, "force point");
   Body& b = mutableBody(id);
   b.force += f;
   b.torque += (p - b.position).cross(f);

@@ -62,36 +62,38 @@ void World::removeShape(ShapeId id) {
 
 void World::addContact(const ContactManifold& manifold) {
   ContactManifold m = manifold;
-  const std::string who = "contact between " + bodyName(m.bodyA) + " and " + bodyName(m.bodyB);
-  if (m.bodyA == m.bodyB) throw Error(who + ": a contact needs two different bodies");
+  // Named only when there is an error: contacts are added every step.
+  auto who = [&m] { return "contact between " + bodyName(m.bodyA) + " and " + bodyName(m.bodyB); };
+  if (m.bodyA == m.bodyB) throw Error(who() + ": a contact needs two different bodies");
   if (m.bodyA != kWorldBody) body(m.bodyA);
   if (m.bodyB != kWorldBody) body(m.bodyB);
   const double n = m.normal.norm();
-  if (!m.normal.allFinite() || n < 1e-9) throw Error(who + ": normal must be finite and non-zero");
+  if (!m.normal.allFinite() || n < 1e-9)
+    throw Error(who() + ": normal must be finite and non-zero");
   m.normal /= n;
   if (m.pointCount < 1 || m.pointCount > kMaxManifoldPoints) {
-    throw Error(who + ": 1 to 4 points, got " + std::to_string(m.pointCount));
+    throw Error(who() + ": 1 to 4 points, got " + std::to_string(m.pointCount));
   }
   for (int i = 0; i < m.pointCount; ++i) {
     if (!m.points[i].position.allFinite() || !std::isfinite(m.points[i].separation)) {
-      throw Error(who + ": point " + std::to_string(i) + " is not finite");
+      throw Error(who() + ": point " + std::to_string(i) + " is not finite");
     }
   }
   const ContactSurface& c = m.surface;
   if (!(c.mu >= 0.0) || std::isnan(c.mu2) || !(c.rolling >= 0.0) || !(c.spinning >= 0.0) ||
       !(c.slip1 >= 0.0) || !(c.slip2 >= 0.0) || !std::isfinite(c.slip1) ||
       !std::isfinite(c.slip2)) {
-    throw Error(who + ": friction, rolling, spinning and slip must be >= 0");
+    throw Error(who() + ": friction, rolling, spinning and slip must be >= 0");
   }
   if (!(c.restitution >= 0.0 && c.restitution <= 1.0) || !(c.restitutionThreshold >= 0.0)) {
-    throw Error(who + ": restitution must be in [0, 1] with a threshold >= 0");
+    throw Error(who() + ": restitution must be in [0, 1] with a threshold >= 0");
   }
   if (!c.softness.valid() || !(c.slop >= 0.0) || !(c.maxCorrectingVelocity > 0.0)) {
-    throw Error(who + ": invalid softness, slop (>= 0) or max correcting velocity (> 0)");
+    throw Error(who() + ": invalid softness, slop (>= 0) or max correcting velocity (> 0)");
   }
   if (!c.frictionDir1.allFinite() || !std::isfinite(c.motion1) || !std::isfinite(c.motion2) ||
       !std::isfinite(c.motionN)) {
-    throw Error(who + ": friction direction and surface velocities must be finite");
+    throw Error(who() + ": friction direction and surface velocities must be finite");
   }
   // Impulses come from our own matching with the last step, not the caller.
   for (ContactPoint& p : m.points) {
