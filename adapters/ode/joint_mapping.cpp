@@ -150,6 +150,47 @@ void readHinge2(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWor
   out.coordinate[1] = dJointGetHinge2Angle1(j);  // core angle 2 (steering)
 }
 
+// One axis of a core 6-DOF joint from an ODE limit-motor: free, or
+// limited by the stops, with the motor.
+SixDofJointDesc::Axis sixDofAxis(dJointID j, ParamGetter get, int group) {
+  Limit limit;
+  Motor motor;
+  readAxis(j, get, group, limit, motor);
+  SixDofJointDesc::Axis a;
+  a.mode = limit.enabled ? SixDofJointDesc::Mode::Limited : SixDofJointDesc::Mode::Free;
+  a.lo = limit.lo;
+  a.hi = limit.hi;
+  a.bounce = limit.bounce;
+  a.motor = motor;
+  return a;
+}
+
+// Piston (cylindrical): slides along and turns about one axis (fixed in
+// body1). A core 6-DOF joint with the frame's x on that axis: x
+// translation and x rotation free or limited (ODE's limit-motors 1 and 2),
+// the rest locked. The 6-DOF joint has one stop softness: limit-motor 1's.
+void readPiston(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 a1, a2, axis;
+  dJointGetPistonAnchor(j, a1);
+  dJointGetPistonAnchor2(j, a2);
+  dJointGetPistonAxis(j, axis);
+  SixDofJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.anchor = vec(a1);
+  d.frame = frameFromAxis(vec(axis).normalized());
+  d.axes[0] = sixDofAxis(j, dJointGetPistonParam, 0);
+  d.axes[3] = sixDofAxis(j, dJointGetPistonParam, dParamGroup);
+  d.limitSoftness = Softness::erpCfm(dJointGetPistonParam(j, dParamStopERP),
+                                     dJointGetPistonParam(j, dParamStopCFM));
+  out.desc = d;
+  out.geometry.add(vec(a1), true, 1);
+  out.geometry.add(vec(a2), true, 2);
+  out.geometry.add(vec(axis), false, 1);
+  out.coordinateCount = 2;
+  out.coordinate[0] = dJointGetPistonPosition(j);
+  out.coordinate[1] = dJointGetPistonAngle(j);
+}
+
 // DBall: the anchors keep ODE's set distance (a rod).
 void readDBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
   dVector3 a1, a2;
@@ -243,6 +284,9 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
     case dJointTypeHinge2:
       readHinge2(j, body1, body2, out, world);
       break;
+    case dJointTypePiston:
+      readPiston(j, body1, body2, out, world);
+      break;
     case dJointTypeNull:
       out.hasRows = false;
       break;
@@ -260,6 +304,12 @@ void shiftLimits(JointDesc& desc, const double offset[2]) {
   } else if (auto* u = std::get_if<UniversalJointDesc>(&desc)) {
     shift(u->limit1, offset[0]);
     shift(u->limit2, offset[1]);
+  } else if (auto* x = std::get_if<SixDofJointDesc>(&desc)) {
+    // Piston: coordinate 0 is the x translation, 1 the x rotation.
+    x->axes[0].lo -= offset[0];
+    x->axes[0].hi -= offset[0];
+    x->axes[3].lo -= offset[1];
+    x->axes[3].hi -= offset[1];
   }
 }
 

@@ -108,6 +108,7 @@ struct SixDofJointDesc {
     Mode mode = Mode::Locked;
     double lo = 0.0, hi = 0.0;
     Motor motor;
+    double bounce = 0.0;  // restitution at the stops, 0..1
   };
   JointCommon common;
   Vec3 anchor = Vec3::Zero();

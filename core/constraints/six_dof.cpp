@@ -34,6 +34,7 @@ void validateJoint(const SixDofJointDesc& d) {
       l.enabled = true;
       l.lo = ax.lo;
       l.hi = ax.hi;
+      l.bounce = ax.bounce;
       validateLimit(l, names[i]);
     }
     validateMotor(ax.motor, names[i]);
@@ -70,7 +71,7 @@ void buildJointRows(const SixDofJointDesc& d, const JointPose& p, RowWriter& out
       row.softness = &d.common.softness;
       continue;
     }
-    const Stops stops{ax.mode == Mode::Limited, ax.lo, ax.hi};
+    const Stops stops{ax.mode == Mode::Limited, ax.lo, ax.hi, ax.bounce};
     addCoordinateRows(rate, rate.C, stops, d.limitSoftness, ax.motor, 6 + 3 * i, out);
   }
   const RelativeRotation rel(p);
@@ -86,7 +87,7 @@ void buildJointRows(const SixDofJointDesc& d, const JointPose& p, RowWriter& out
         continue;
       }
       angularAxisRow(p.axisA(i), 0.0, rate);
-      const Stops stops{ax.mode == Mode::Limited, ax.lo, ax.hi};
+      const Stops stops{ax.mode == Mode::Limited, ax.lo, ax.hi, ax.bounce};
       addCoordinateRows(rate, rel.angle(i), stops, d.limitSoftness, ax.motor, 15 + 3 * i, out);
     }
     addRotationRows(rel, locked, d.common.softness, 3, out);
@@ -112,7 +113,7 @@ void buildJointRows(const SixDofJointDesc& d, const JointPose& p, RowWriter& out
       row.softness = &d.common.softness;
       continue;
     }
-    const Stops stops{ax.mode == Mode::Limited, ax.lo, ax.hi};
+    const Stops stops{ax.mode == Mode::Limited, ax.lo, ax.hi, ax.bounce};
     addCoordinateRows(rate, angle, stops, d.limitSoftness, ax.motor, 15 + 3 * i, out);
   }
 }

@@ -266,6 +266,34 @@ TEST(OdeJoints, Hinge2SteersSpringsAndDrives) {
   EXPECT_NEAR(run.block.back()[2], run.direct.back()[2], 0.05 * run.direct.back()[2]);
 }
 
+// Piston: a body slides down a tilted rod onto a stop while a motor turns
+// it about the rod.
+TEST(OdeJoints, PistonSlidesToItsStopAndTurns) {
+  auto build = [](OdeScene& s) {
+    dBodyID body = s.box(0.0, 0.0, 1.0);
+    dJointID j = s.add(dJointCreatePiston(s.world, 0), body, nullptr);
+    dJointSetPistonAnchor(j, 0.0, 0.0, 1.0);
+    dJointSetPistonAxis(j, 1.0, 0.0, 1.0);
+    dJointSetPistonParam(j, dParamLoStop, -0.25);
+    dJointSetPistonParam(j, dParamVel2, 2.0);
+    dJointSetPistonParam(j, dParamFMax2, 5.0);
+  };
+  auto probe = [](OdeScene& s) {
+    dVector3 a1, a2;
+    dJointGetPistonAnchor(s.joints[0], a1);
+    dJointGetPistonAnchor2(s.joints[0], a2);
+    return std::vector<double>{dJointGetPistonPosition(s.joints[0]),
+                               dJointGetPistonAngleRate(s.joints[0])};
+  };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("piston position (m)", 0);
+  run.report("piston turn rate (rad/s)", 1);
+  EXPECT_NEAR(run.block.back()[0], -0.25, 0.005);
+  EXPECT_NEAR(run.block.back()[1], 2.0, 0.01);
+  EXPECT_LT(run.maxDifference(0), 0.01);
+  EXPECT_LT(run.maxDifference(1), 0.05);
+}
+
 // A fixed joint welds a second body under a ball-jointed first one: the
 // pair swings as one rigid pendulum.
 TEST(OdeJoints, FixedWeldSwingsAsOneBody) {
