@@ -147,6 +147,7 @@ StepOutcome WorldBridge::step(const WorldRecord& record, double h) {
   }
   writeBack(record);
   writeFeedback(record);
+  writeContactFeedback();
   return StepOutcome::Stepped;
 }
 
@@ -161,6 +162,7 @@ bool WorldBridge::readAll(const WorldRecord& record) {
   reads_.resize(record.joints.size());
   pointContacts_.clear();
   contactBodies_.clear();
+  contactFeedback_.clear();
   for (std::size_t i = 0; i < record.joints.size(); ++i) {
     const dJointID j = record.joints[i];
     JointRead& read = reads_[i];
@@ -170,12 +172,6 @@ bool WorldBridge::readAll(const WorldRecord& record) {
     if ((!b1 && !b2) || !dJointIsEnabled(j)) continue;
     const JointRecord* rec = Registry::instance().joint(j);
     if (rec && rec->hasContact) {
-      if (dJointGetFeedback(j)) {
-        message_ =
-            "ODE contact joint with dJointFeedback: blockstep does not report contact "
-            "joint feedback yet";
-        return false;
-      }
       const MappedContact mapped =
           mapContact(rec->contact, coreBody(b1), coreBody(b2), contactParams_);
       if (mapped.unsupported) {
@@ -184,6 +180,10 @@ bool WorldBridge::readAll(const WorldRecord& record) {
         return false;
       }
       pointContacts_.push_back(mapped.manifold);
+      if (dJointFeedback* fb = dJointGetFeedback(j)) {
+        contactFeedback_.push_back({fb, b1, b2, mapped.manifold.bodyB, mapped.manifold.bodyA,
+                                    mapped.manifold.points[0].position});
+      }
       Softness& soft = pointContacts_.back().surface.softness;
       soft = contactSoftness(soft.erp, soft.cfm);
       contactBodies_.push_back({b1, b2});
@@ -465,6 +465,44 @@ void WorldBridge::writeFeedback(const WorldRecord& record) {
       if (twoBodies) {
         out->f2[k] = fb.forceA[k];
         out->t2[k] = fb.torqueA[k];
+      }
+    }
+  }
+}
+
+// A contact joint's dJointFeedback: its point's normal and friction
+// impulses summed over the step's sub-steps, as a force at the contact
+// point (torques about each body's centre). ODE's one-point contacts were
+// grouped into manifolds; the point is found again by its position.
+void WorldBridge::writeContactFeedback() {
+  const std::vector<ContactManifold>& solved = core_.contacts();
+  for (const ContactFeedback& c : contactFeedback_) {
+    Vec3 onBody1 = Vec3::Zero();
+    for (const ContactManifold& m : solved) {
+      const bool same = m.bodyB == c.core1 && m.bodyA == c.core2;
+      const bool swapped = m.bodyA == c.core1 && m.bodyB == c.core2;
+      if (!same && !swapped) continue;
+      for (int i = 0; i < m.pointCount; ++i) {
+        const ContactPoint& p = m.points[i];
+        if ((p.position - c.position).squaredNorm() > 1e-24) continue;
+        const Vec3 onB = (p.stepNormalImpulse * m.normal + p.stepTangentImpulse[0] * m.tangent1 +
+                          p.stepTangentImpulse[1] * m.tangent2) /
+                         step_;
+        onBody1 = same ? onB : Vec3(-onB);
+      }
+    }
+    const dBodyID first = c.body1 ? c.body1 : c.body2;  // ODE's node 0
+    const Vec3 f1 = c.body1 ? onBody1 : Vec3(-onBody1);
+    const Vec3 t1 = (c.position - vec(dBodyGetPosition(first))).cross(f1);
+    for (int k = 0; k < 3; ++k) {
+      c.out->f1[k] = f1[k];
+      c.out->t1[k] = t1[k];
+    }
+    if (c.body1 && c.body2) {
+      const Vec3 t2 = (c.position - vec(dBodyGetPosition(c.body2))).cross(-onBody1);
+      for (int k = 0; k < 3; ++k) {
+        c.out->f2[k] = -onBody1[k];
+        c.out->t2[k] = t2[k];
       }
     }
   }

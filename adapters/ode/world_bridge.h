@@ -105,6 +105,7 @@ class WorldBridge {
   void syncJoints(const WorldRecord& record);
   void writeBack(const WorldRecord& record);
   void writeFeedback(const WorldRecord& record);
+  void writeContactFeedback();
   BodyId coreBody(dBodyID body);
   MappedBody& mapBody(dBodyID body);
   JointGeometry toLocal(const JointGeometry& g, dBodyID body1, dBodyID body2) const;
@@ -123,6 +124,13 @@ class WorldBridge {
   std::vector<JointRead> reads_;  // one per record.joints entry (contacts: unused)
   std::vector<ContactManifold> pointContacts_, manifolds_;
   std::vector<std::pair<dBodyID, dBodyID>> contactBodies_;  // ODE body1, body2 of each point
+  struct ContactFeedback {  // a contact joint whose dJointFeedback the program reads
+    dJointFeedback* out;
+    dBodyID body1, body2;
+    BodyId core1, core2;
+    Vec3 position;
+  };
+  std::vector<ContactFeedback> contactFeedback_;
   WorldContactParams contactParams_;
   double step_ = 0.0;
   std::string message_;
