@@ -201,6 +201,18 @@ BLOCKSTEP_CHECKED_SETTER(dJointSetDHingeAnchor1, goodPoint)
 BLOCKSTEP_CHECKED_SETTER(dJointSetDHingeAnchor2, goodPoint)
 #undef BLOCKSTEP_CHECKED_SETTER
 
+void dJointSetLMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal z) {
+  BLOCKSTEP_REAL(dJointSetLMotorAxis);
+  if (!goodAxis("dJointSetLMotorAxis", x, y, z)) return;
+  real_dJointSetLMotorAxis(j, anum, rel, x, y, z);
+  Registry::instance().lmotorAxisSet(j, anum, rel);
+}
+
+void dJointSetAMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal z) {
+  BLOCKSTEP_REAL(dJointSetAMotorAxis);
+  if (goodAxis("dJointSetAMotorAxis", x, y, z)) real_dJointSetAMotorAxis(j, anum, rel, x, y, z);
+}
+
 void dJointSetHinge2Axes(dJointID j, const dReal* axis1, const dReal* axis2) {
   BLOCKSTEP_REAL(dJointSetHinge2Axes);
   if (axis1 && !goodAxis("dJointSetHinge2Axes (axis1)", axis1[0], axis1[1], axis1[2])) return;

@@ -191,6 +191,70 @@ void readPiston(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWor
   out.coordinate[1] = dJointGetPistonAngle(j);
 }
 
+// ODE's axis frames (0 global, 1 body1, 2 body2) as the core's (body1 is
+// the core's B).
+MotorJointDesc::Frame motorFrame(int rel) {
+  return rel == 1   ? MotorJointDesc::Frame::B
+         : rel == 2 ? MotorJointDesc::Frame::A
+                    : MotorJointDesc::Frame::World;
+}
+
+// AMotor in user mode: a motor and stops on each of its 1-3 axes; the
+// stops act on the angles the program sets (dJointSetAMotorAngle), as in
+// ODE. Euler mode needs ODE's internal reference vectors, which its API
+// does not give back.
+void readAMotor(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  if (dJointGetAMotorMode(j) != dAMotorUser) {
+    out.unsupported = "Euler mode (dAMotorEuler) has no blockstep mapping yet";
+    return;
+  }
+  MotorJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.angular = true;
+  d.axisCount = dJointGetAMotorNumAxes(j);
+  if (d.axisCount < 1) {
+    out.hasRows = false;
+    return;
+  }
+  for (int i = 0; i < d.axisCount; ++i) {
+    dVector3 axis;
+    dJointGetAMotorAxis(j, i, axis);
+    MotorJointDesc::Axis& a = d.axes[i];
+    a.axis = vec(axis);
+    const int rel = dJointGetAMotorAxisRel(j, i);
+    a.frame = motorFrame(rel);
+    readAxis(j, dJointGetAMotorParam, dParamGroup * i, a.limit, a.motor);
+    a.value = dJointGetAMotorAngle(j, i);
+    out.geometry.add(vec(axis), false, rel);
+  }
+  out.desc = d;
+}
+
+// LMotor: a motor on each of its 1-3 axes, driving body1's centre
+// relative to body2's. ODE gives it no position, so no stops either.
+void readLMotor(dJointID j, BodyId b1, BodyId b2, const int rel[3], JointRead& out,
+                const JointWorldParams& w) {
+  MotorJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.angular = false;
+  d.axisCount = dJointGetLMotorNumAxes(j);
+  if (d.axisCount < 1) {
+    out.hasRows = false;
+    return;
+  }
+  for (int i = 0; i < d.axisCount; ++i) {
+    dVector3 axis;
+    dJointGetLMotorAxis(j, i, axis);
+    MotorJointDesc::Axis& a = d.axes[i];
+    a.axis = vec(axis);
+    a.frame = motorFrame(rel[i]);
+    Limit unused;
+    readAxis(j, dJointGetLMotorParam, dParamGroup * i, unused, a.motor);
+    out.geometry.add(vec(axis), false, rel[i]);
+  }
+  out.desc = d;
+}
+
 // DBall: the anchors keep ODE's set distance (a rod).
 void readDBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
   dVector3 a1, a2;
@@ -257,7 +321,7 @@ const char* odeJointTypeName(int type) {
 }
 
 void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& world,
-               JointRead& out) {
+               const int lmotorRel[3], JointRead& out) {
   out.geometry.count = 0;
   out.coordinateCount = 0;
   out.hasRows = true;
@@ -286,6 +350,12 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
       break;
     case dJointTypePiston:
       readPiston(j, body1, body2, out, world);
+      break;
+    case dJointTypeAMotor:
+      readAMotor(j, body1, body2, out, world);
+      break;
+    case dJointTypeLMotor:
+      readLMotor(j, body1, body2, lmotorRel, out, world);
       break;
     case dJointTypeNull:
       out.hasRows = false;

@@ -25,7 +25,7 @@ struct JointGeometry {
   int count = 0;
   Vec3 value[kMax];  // world, as ODE's getters return them
   bool isPoint[kMax] = {};
-  int side[kMax] = {};
+  int side[kMax] = {};  // 0: the world
 
   void add(const Vec3& v, bool point, int onSide) {
     value[count] = v;
@@ -59,8 +59,9 @@ struct JointRead {
 
 // Reads ODE joint j. body1/body2 are the core ids of ODE's public body1
 // and body2 (kWorldBody for 0). Limits come out in ODE's coordinates.
+// `lmotorRel`: an LMotor's axis frames as the program set them.
 void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& world,
-               JointRead& out);
+               const int lmotorRel[3], JointRead& out);
 
 // Moves limits from ODE's coordinates to the core's: core = ODE - offset,
 // offset[i] being ODE's coordinate i when the core joint was made.

@@ -101,6 +101,12 @@ void Registry::groupDestroyed(dJointGroupID group) {
   groups_.erase(group);  // the address may come back as another group
 }
 
+void Registry::lmotorAxisSet(dJointID joint, int axis, int rel) {
+  std::lock_guard lock(mutex_);
+  JointRecord* r = joints_.find(joint);
+  if (r && axis >= 0 && axis < 3) r->lmotorRel[axis] = rel;
+}
+
 void Registry::worldDestroyed(dWorldID world) {
   std::lock_guard lock(mutex_);
   WorldRecord* w = this->world(world);

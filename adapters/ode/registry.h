@@ -27,6 +27,8 @@ struct JointRecord {
   std::uint32_t index = 0;  // in its world's joint list
   bool hasContact = false;
   dContact contact{};  // the contact joint's data, as given to dJointCreateContact
+  // LMotor axes' frames (0 world, 1 body1, 2 body2): ODE has no getter.
+  int lmotorRel[3] = {0, 0, 0};
 };
 
 struct WorldRecord {
@@ -50,6 +52,7 @@ class Registry {
   void groupEmptied(dJointGroupID group);
   void groupDestroyed(dJointGroupID group);
   void worldDestroyed(dWorldID world);
+  void lmotorAxisSet(dJointID joint, int axis, int rel);
 
   // nullptr for a world never seen.
   WorldRecord* world(dWorldID world);

@@ -189,7 +189,8 @@ bool WorldBridge::readAll(const WorldRecord& record) {
       contactBodies_.push_back({b1, b2});
       continue;
     }
-    readJoint(j, coreBody(b1), coreBody(b2), params, read);
+    static constexpr int kNoRel[3] = {0, 0, 0};
+    readJoint(j, coreBody(b1), coreBody(b2), params, rec ? rec->lmotorRel : kNoRel, read);
     if (read.unsupported) {
       message_ =
           std::string("ODE ") + odeJointTypeName(dJointGetType(j)) + " joint: " + read.unsupported;
@@ -354,7 +355,8 @@ void WorldBridge::wakeIslands(const WorldRecord& record) {
 JointGeometry WorldBridge::toLocal(const JointGeometry& g, dBodyID body1, dBodyID body2) const {
   JointGeometry local = g;
   for (int i = 0; i < g.count; ++i) {
-    local.value[i] = inBodyFrame(g.side[i] == 1 ? body1 : body2, g.value[i], g.isPoint[i]);
+    const dBodyID on = g.side[i] == 1 ? body1 : g.side[i] == 2 ? body2 : nullptr;
+    local.value[i] = inBodyFrame(on, g.value[i], g.isPoint[i]);
   }
   return local;
 }
@@ -400,6 +402,12 @@ void WorldBridge::syncJoints(const WorldRecord& record) {
       makeJoint(m, j, read);
     } else {
       shiftLimits(read.desc, m.offset);
+      if (auto* motor = std::get_if<MotorJointDesc>(&read.desc)) {
+        // Its axes are those of creation (the frames turn them since).
+        const auto& made = std::get<MotorJointDesc>(core_.joint(m.id));
+        for (int k = 0; k < 3; ++k)
+          motor->axes[k].axis = made.axes[k].axis;
+      }
       core_.updateJoint(m.id, read.desc);
       core_.setJointEnabled(m.id, true);
     }

@@ -105,6 +105,9 @@ const char* jointKindName(const JointDesc& d) {
     const char* operator()(const ConeTwistJointDesc&) const { return "cone-twist"; }
     const char* operator()(const SixDofJointDesc&) const { return "6-DOF"; }
     const char* operator()(const DistanceJointDesc&) const { return "distance"; }
+    const char* operator()(const MotorJointDesc& m) const {
+      return m.angular ? "angular motor" : "linear motor";
+    }
   };
   return std::visit(Names{}, d);
 }

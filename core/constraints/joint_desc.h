@@ -127,9 +127,32 @@ struct DistanceJointDesc {
   double maxLength = -1.0;
 };
 
+// Motors (and stops) on up to three axes, constraining nothing else: ODE's
+// AMotor (angular, user mode) and LMotor (linear). Each axis is fixed in
+// the world, in A or in B (given in world coordinates at creation; they
+// keep those of creation); an angular axis drives the relative rotation
+// rate of B over A about it, a linear one the relative velocity of B's
+// centre over A's along it. Stops act on `value`, the axis's coordinate as
+// the caller measures it (ODE's user-set AMotor angles), refreshed by
+// updateJoint.
+struct MotorJointDesc {
+  enum class Frame : std::uint8_t { World, A, B };
+  struct Axis {
+    Vec3 axis = Vec3::UnitX();
+    Frame frame = Frame::World;
+    Limit limit;
+    Motor motor;
+    double value = 0.0;
+  };
+  JointCommon common;
+  bool angular = true;
+  int axisCount = 1;  // 1..3
+  Axis axes[3];
+};
+
 using JointDesc =
     std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc, UniversalJointDesc,
-                 ConeTwistJointDesc, SixDofJointDesc, DistanceJointDesc>;
+                 ConeTwistJointDesc, SixDofJointDesc, DistanceJointDesc, MotorJointDesc>;
 
 inline const JointCommon& common(const JointDesc& d) {
   return std::visit([](const auto& j) -> const JointCommon& { return j.common; }, d);

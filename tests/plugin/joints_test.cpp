@@ -294,6 +294,61 @@ TEST(OdeJoints, PistonSlidesToItsStopAndTurns) {
   EXPECT_LT(run.maxDifference(1), 0.05);
 }
 
+// AMotor (user mode), no gravity: a motor about the body's own z axis
+// spins it up to dParamVel within FMax, while a second axis (global x,
+// zero speed, large FMax) stops the tumbling it started with; as
+// dWorldStep has it.
+TEST(OdeJoints, AMotorDrivesAndHolds) {
+  auto build = [](OdeScene& s) {
+    dWorldSetGravity(s.world, 0, 0, 0);
+    dBodyID body = s.box(0.0, 0.0, 0.0);
+    dBodySetAngularVel(body, 2.0, 0.0, 0.0);
+    dJointID motor = s.add(dJointCreateAMotor(s.world, 0), body, nullptr);
+    dJointSetAMotorMode(motor, dAMotorUser);
+    dJointSetAMotorNumAxes(motor, 2);
+    dJointSetAMotorAxis(motor, 0, 1, 0.0, 0.0, 1.0);  // fixed in the body
+    dJointSetAMotorAxis(motor, 1, 0, 1.0, 0.0, 0.0);  // global x
+    dJointSetAMotorParam(motor, dParamVel, 3.0);
+    dJointSetAMotorParam(motor, dParamFMax, 0.02);
+    dJointSetAMotorParam(motor, dParamVel2, 0.0);
+    dJointSetAMotorParam(motor, dParamFMax2, 100.0);
+  };
+  auto probe = [](OdeScene& s) {
+    const dReal* w = dBodyGetAngularVel(s.bodies[0]);
+    dVector3 spin;
+    dJointGetAMotorAxis(s.joints[0], 0, spin);
+    return std::vector<double>{w[0] * spin[0] + w[1] * spin[1] + w[2] * spin[2], w[0]};
+  };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("spin about the body's z (rad/s)", 0);
+  run.report("tumble about global x (rad/s)", 1);
+  // I = m s^2 / 6 = 1/150 kg m^2: 0.02 N m gives 3 rad/s^2, 3 rad/s at 1 s.
+  EXPECT_NEAR(run.block[119][0], 1.5, 0.01);
+  EXPECT_NEAR(run.block.back()[1], 0.0, 1e-6);
+  EXPECT_LT(run.maxDifference(0), 0.01);
+  EXPECT_LT(run.maxDifference(1), 0.01);
+}
+
+// LMotor: a force-limited linear motor along global x pulls a free body
+// up to its speed (a = FMax / m), as dWorldStep has it.
+TEST(OdeJoints, LMotorPullsUpToSpeed) {
+  auto build = [](OdeScene& s) {
+    dWorldSetGravity(s.world, 0, 0, 0);
+    dBodyID body = s.box(0.0, 0.0, 0.0, 2.0);
+    dJointID motor = s.add(dJointCreateLMotor(s.world, 0), body, nullptr);
+    dJointSetLMotorNumAxes(motor, 1);
+    dJointSetLMotorAxis(motor, 0, 0, 1.0, 0.0, 0.0);
+    dJointSetLMotorParam(motor, dParamVel, 1.0);
+    dJointSetLMotorParam(motor, dParamFMax, 4.0);
+  };
+  auto probe = [](OdeScene& s) { return std::vector<double>{dBodyGetLinearVel(s.bodies[0])[0]}; };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("LMotor speed (m/s)", 0);
+  EXPECT_NEAR(run.block[59][0], 4.0 / 2.0 * 0.25, 1e-6);  // a = 2 m/s^2 for 0.25 s
+  EXPECT_NEAR(run.block.back()[0], 1.0, 1e-6);
+  EXPECT_LT(run.maxDifference(0), 1e-6);
+}
+
 // A fixed joint welds a second body under a ball-jointed first one: the
 // pair swings as one rigid pendulum.
 TEST(OdeJoints, FixedWeldSwingsAsOneBody) {
