@@ -213,6 +213,18 @@ void dJointSetAMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal 
   if (goodAxis("dJointSetAMotorAxis", x, y, z)) real_dJointSetAMotorAxis(j, anum, rel, x, y, z);
 }
 
+// Plane2D's motors have setters only; the registry keeps what they set.
+#define BLOCKSTEP_PLANE2D_PARAM(name, motor)                          \
+  void name(dJointID j, int parameter, dReal value) {                 \
+    BLOCKSTEP_REAL(name);                                             \
+    real_##name(j, parameter, value);                                 \
+    Registry::instance().plane2dParamSet(j, motor, parameter, value); \
+  }
+BLOCKSTEP_PLANE2D_PARAM(dJointSetPlane2DXParam, 0)
+BLOCKSTEP_PLANE2D_PARAM(dJointSetPlane2DYParam, 1)
+BLOCKSTEP_PLANE2D_PARAM(dJointSetPlane2DAngleParam, 2)
+#undef BLOCKSTEP_PLANE2D_PARAM
+
 void dJointSetHinge2Axes(dJointID j, const dReal* axis1, const dReal* axis2) {
   BLOCKSTEP_REAL(dJointSetHinge2Axes);
   if (axis1 && !goodAxis("dJointSetHinge2Axes (axis1)", axis1[0], axis1[1], axis1[2])) return;

@@ -2,6 +2,7 @@
 // joints/*.cpp getInfo2 and its public getters).
 #include "adapters/ode/joint_mapping.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace blockstep::ode {
@@ -255,6 +256,36 @@ void readLMotor(dJointID j, BodyId b1, BodyId b2, const int rel[3], JointRead& o
   out.desc = d;
 }
 
+// Plane2D: the body stays in the plane z = 0 and turns only about z
+// (ODE's rows: vz = 0 pulled back to z = 0, wx = wy = 0), with velocity
+// motors along x, y and about z. A core 6-DOF joint with the world frame
+// anchored at the body's centre: it holds the z of the first step, so the
+// body must be on z = 0, as in ODE's own use.
+void readPlane2D(dJointID j, BodyId b1, BodyId b2, const JointSetOnly& set, JointRead& out,
+                 const JointWorldParams& w) {
+  dBodyID body = dJointGetBody(j, 0);
+  if (!body || dJointGetBody(j, 1)) {
+    out.unsupported = "plane2d attached other than to one body (as ODE's body1)";
+    return;
+  }
+  const dReal* x = dBodyGetPosition(body);
+  SixDofJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.anchor = Vec3(x[0], x[1], 0.0);
+  using Mode = SixDofJointDesc::Mode;
+  const int freeAxes[3] = {0, 1, 5};  // x, y translation; rotation about z
+  for (int k = 0; k < 3; ++k) {
+    SixDofJointDesc::Axis& a = d.axes[freeAxes[k]];
+    a.mode = Mode::Free;
+    a.motor.targetVelocity = set.plane2dVel[k];
+    a.motor.maxForce = std::max(0.0, set.plane2dFMax[k]);
+  }
+  out.desc = d;
+  // The core joint keeps the z of its creation (ODE pulls toward 0): a
+  // body more than 1 mm off the plane is refused rather than held there.
+  if (std::abs(x[2]) > 1e-3) out.unsupported = "plane2d on a body that is off z = 0";
+}
+
 // DBall: the anchors keep ODE's set distance (a rod).
 void readDBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
   dVector3 a1, a2;
@@ -321,7 +352,7 @@ const char* odeJointTypeName(int type) {
 }
 
 void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& world,
-               const int lmotorRel[3], JointRead& out) {
+               const JointSetOnly& setOnly, JointRead& out) {
   out.geometry.count = 0;
   out.coordinateCount = 0;
   out.hasRows = true;
@@ -355,7 +386,10 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
       readAMotor(j, body1, body2, out, world);
       break;
     case dJointTypeLMotor:
-      readLMotor(j, body1, body2, lmotorRel, out, world);
+      readLMotor(j, body1, body2, setOnly.lmotorRel, out, world);
+      break;
+    case dJointTypePlane2D:
+      readPlane2D(j, body1, body2, setOnly, out, world);
       break;
     case dJointTypeNull:
       out.hasRows = false;

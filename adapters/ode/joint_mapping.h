@@ -59,9 +59,16 @@ struct JointRead {
 
 // Reads ODE joint j. body1/body2 are the core ids of ODE's public body1
 // and body2 (kWorldBody for 0). Limits come out in ODE's coordinates.
-// `lmotorRel`: an LMotor's axis frames as the program set them.
+// What the program set that ODE's getters do not give back (the
+// registry records it from the interposed setters).
+struct JointSetOnly {
+  int lmotorRel[3] = {0, 0, 0};      // LMotor axis frames
+  double plane2dVel[3] = {0, 0, 0};  // Plane2D motors x, y, angle
+  double plane2dFMax[3] = {0, 0, 0};
+};
+
 void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& world,
-               const int lmotorRel[3], JointRead& out);
+               const JointSetOnly& setOnly, JointRead& out);
 
 // Moves limits from ODE's coordinates to the core's: core = ODE - offset,
 // offset[i] being ODE's coordinate i when the core joint was made.

@@ -107,6 +107,14 @@ void Registry::lmotorAxisSet(dJointID joint, int axis, int rel) {
   if (r && axis >= 0 && axis < 3) r->lmotorRel[axis] = rel;
 }
 
+void Registry::plane2dParamSet(dJointID joint, int motor, int parameter, double value) {
+  std::lock_guard lock(mutex_);
+  JointRecord* r = joints_.find(joint);
+  if (!r || motor < 0 || motor > 2) return;
+  if (parameter == dParamVel) r->plane2dVel[motor] = value;
+  if (parameter == dParamFMax) r->plane2dFMax[motor] = value;
+}
+
 void Registry::worldDestroyed(dWorldID world) {
   std::lock_guard lock(mutex_);
   WorldRecord* w = this->world(world);

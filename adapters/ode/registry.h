@@ -29,6 +29,9 @@ struct JointRecord {
   dContact contact{};  // the contact joint's data, as given to dJointCreateContact
   // LMotor axes' frames (0 world, 1 body1, 2 body2): ODE has no getter.
   int lmotorRel[3] = {0, 0, 0};
+  // Plane2D motors (x, y, angle): velocity and max force. ODE has no getter.
+  double plane2dVel[3] = {0.0, 0.0, 0.0};
+  double plane2dFMax[3] = {0.0, 0.0, 0.0};
 };
 
 struct WorldRecord {
@@ -53,6 +56,7 @@ class Registry {
   void groupDestroyed(dJointGroupID group);
   void worldDestroyed(dWorldID world);
   void lmotorAxisSet(dJointID joint, int axis, int rel);
+  void plane2dParamSet(dJointID joint, int motor, int parameter, double value);
 
   // nullptr for a world never seen.
   WorldRecord* world(dWorldID world);

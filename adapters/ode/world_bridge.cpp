@@ -189,8 +189,15 @@ bool WorldBridge::readAll(const WorldRecord& record) {
       contactBodies_.push_back({b1, b2});
       continue;
     }
-    static constexpr int kNoRel[3] = {0, 0, 0};
-    readJoint(j, coreBody(b1), coreBody(b2), params, rec ? rec->lmotorRel : kNoRel, read);
+    JointSetOnly setOnly;
+    if (rec) {
+      for (int k = 0; k < 3; ++k) {
+        setOnly.lmotorRel[k] = rec->lmotorRel[k];
+        setOnly.plane2dVel[k] = rec->plane2dVel[k];
+        setOnly.plane2dFMax[k] = rec->plane2dFMax[k];
+      }
+    }
+    readJoint(j, coreBody(b1), coreBody(b2), params, setOnly, read);
     if (read.unsupported) {
       message_ =
           std::string("ODE ") + odeJointTypeName(dJointGetType(j)) + " joint: " + read.unsupported;
