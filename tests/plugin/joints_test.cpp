@@ -376,8 +376,8 @@ TEST(OdeJoints, Plane2DKeepsTheBodyInThePlane) {
   run.reportError("|z| (m)", 2);
   run.reportError("tilt rate (rad/s)", 4);
   // The fall along y differs by ODE's own integration error, g h t / 2
-  // (0.02 m at h = 1/240 s, t = 1 s); blockstep's fall is for semi-implicit Euler over sub-steps
-  // h_s: 2 t - g t^2 / 2 - g h_s t / 2.
+  // (0.02 m at h = 1/240 s, t = 1 s); blockstep's fall is semi-implicit Euler's over
+  // sub-steps h_s exactly: 2 t - g t^2 / 2 - g h_s t / 2.
   EXPECT_LT(run.maxDifference(0), 3e-3);
   EXPECT_LT(run.maxDifference(1), 0.5 * 9.81 * kStep * 1.0 + 1e-3);
   EXPECT_NEAR(run.block.back()[1], 2.0 - 0.5 * 9.81 - 0.5 * 9.81 * (kStep / 20.0), 1e-9);
