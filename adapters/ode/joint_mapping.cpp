@@ -286,6 +286,29 @@ void readPlane2D(dJointID j, BodyId b1, BodyId b2, const JointSetOnly& set, Join
   if (std::abs(x[2]) > 1e-3) out.unsupported = "plane2d on a body that is off z = 0";
 }
 
+// PR: ODE's axis1 (prismatic) and the rotoide axis are fixed in body1,
+// the anchor on the rotoide axis in body2: the core's prismatic-rotoide
+// joint with body1 as B. Limit-motor 1 on the slide, 2 on the angle.
+void readPR(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 anchor, axisP, axisR;
+  dJointGetPRAnchor(j, anchor);
+  dJointGetPRAxis1(j, axisP);
+  dJointGetPRAxis2(j, axisR);
+  PrismaticRotoideJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.anchor = vec(anchor);
+  d.axisP = vec(axisP);
+  d.axisR = vec(axisR);
+  readAxis(j, dJointGetPRParam, 0, d.limitP, d.motorP);
+  readAxis(j, dJointGetPRParam, dParamGroup, d.limitR, d.motorR);
+  out.desc = d;
+  out.geometry.add(vec(axisP), false, 1);
+  out.geometry.add(vec(axisR), false, 1);
+  out.coordinateCount = 2;
+  out.coordinate[0] = dJointGetPRPosition(j);
+  out.coordinate[1] = dJointGetPRAngle(j);
+}
+
 // DBall: the anchors keep ODE's set distance (a rod).
 void readDBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
   dVector3 a1, a2;
@@ -391,6 +414,9 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
     case dJointTypePlane2D:
       readPlane2D(j, body1, body2, setOnly, out, world);
       break;
+    case dJointTypePR:
+      readPR(j, body1, body2, out, world);
+      break;
     case dJointTypeNull:
       out.hasRows = false;
       break;
@@ -408,6 +434,9 @@ void shiftLimits(JointDesc& desc, const double offset[2]) {
   } else if (auto* u = std::get_if<UniversalJointDesc>(&desc)) {
     shift(u->limit1, offset[0]);
     shift(u->limit2, offset[1]);
+  } else if (auto* pr = std::get_if<PrismaticRotoideJointDesc>(&desc)) {
+    shift(pr->limitP, offset[0]);
+    shift(pr->limitR, offset[1]);
   } else if (auto* x = std::get_if<SixDofJointDesc>(&desc)) {
     // Piston: coordinate 0 is the x translation, 1 the x rotation.
     x->axes[0].lo -= offset[0];

@@ -127,6 +127,19 @@ struct DistanceJointDesc {
   double maxLength = -1.0;
 };
 
+// Prismatic then rotoide (ODE's PR): B slides along axisP (fixed in B)
+// relative to A, and A turns about axisR (through the anchor, fixed in A;
+// kept aligned with B's). axisP and axisR are perpendicular. Limits and
+// motors on the slide (B relative to A along axisP) and on the angle.
+struct PrismaticRotoideJointDesc {
+  JointCommon common;
+  Vec3 anchor = Vec3::Zero();
+  Vec3 axisP = Vec3::UnitX();
+  Vec3 axisR = Vec3::UnitY();
+  Limit limitP, limitR;
+  Motor motorP, motorR;
+};
+
 // Motors (and stops) on up to three axes, constraining nothing else: ODE's
 // AMotor (angular, user mode) and LMotor (linear). Each axis is fixed in
 // the world, in A or in B (given in world coordinates at creation; they
@@ -150,9 +163,9 @@ struct MotorJointDesc {
   Axis axes[3];
 };
 
-using JointDesc =
-    std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc, UniversalJointDesc,
-                 ConeTwistJointDesc, SixDofJointDesc, DistanceJointDesc, MotorJointDesc>;
+using JointDesc = std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc,
+                               UniversalJointDesc, ConeTwistJointDesc, SixDofJointDesc,
+                               DistanceJointDesc, MotorJointDesc, PrismaticRotoideJointDesc>;
 
 inline const JointCommon& common(const JointDesc& d) {
   return std::visit([](const auto& j) -> const JointCommon& { return j.common; }, d);

@@ -46,6 +46,21 @@ inline void attachedToBAxisRow(const JointPose& p, const Vec3& n, ConstraintRow&
   row.angular = false;
 }
 
+// ODE's rate row for a linear limit or motor (its "linear limot torque
+// decoupling"): the centres' relative velocity along n, with the torque
+// that keeps it invariant under a common rotation split evenly between
+// the bodies. With the stage's own body rotating (ODE's PR) it is what
+// ODE's stops and motors push along. C is left to the caller.
+inline void centresAxisRow(const JointPose& p, const Vec3& n, ConstraintRow& row) {
+  const Vec3 xA = p.pA - p.rA, xB = p.pB - p.rB;
+  const Vec3 split = 0.5 * (xA - xB).cross(n);
+  row.linA = -n;
+  row.angA = split;
+  row.linB = n;
+  row.angB = split;
+  row.angular = false;
+}
+
 // Relative rotation rate about world axis a: dC/dt = (wB - wA) . a.
 inline void angularAxisRow(const Vec3& a, double C, ConstraintRow& row) {
   row.linA.setZero();
