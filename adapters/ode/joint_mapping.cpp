@@ -309,6 +309,35 @@ void readPR(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldPa
   out.coordinate[1] = dJointGetPRAngle(j);
 }
 
+// PU: ODE's axis1 and the prismatic axis (its "axis 3") are fixed in
+// body1, axis2 in body2; as for the universal joint the core's axis1 (in
+// A) is ODE's axis2. Limit-motors: 1 and 2 on the angles, 3 (dParamLoStop3)
+// on the slide.
+void readPU(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 a1, axis1, axis2, axisP;
+  dJointGetPUAnchor(j, a1);
+  dJointGetPUAxis1(j, axis1);
+  dJointGetPUAxis2(j, axis2);
+  dJointGetPUAxis3(j, axisP);
+  PrismaticUniversalJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.anchor = vec(a1);
+  d.axisP = vec(axisP);
+  d.axis1 = vec(axis2);
+  d.axis2 = vec(axis1);
+  readAxis(j, dJointGetPUParam, 2 * dParamGroup, d.limitP, d.motorP);
+  readAxis(j, dJointGetPUParam, dParamGroup, d.limit1, d.motor1);
+  readAxis(j, dJointGetPUParam, 0, d.limit2, d.motor2);
+  out.desc = d;
+  out.geometry.add(vec(axis1), false, 1);
+  out.geometry.add(vec(axis2), false, 2);
+  out.geometry.add(vec(axisP), false, 1);
+  out.coordinateCount = 3;
+  out.coordinate[0] = dJointGetPUAngle2(j);  // core angle 1
+  out.coordinate[1] = dJointGetPUAngle1(j);  // core angle 2
+  out.coordinate[2] = dJointGetPUPosition(j);
+}
+
 // DBall: the anchors keep ODE's set distance (a rod).
 void readDBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
   dVector3 a1, a2;
@@ -378,6 +407,7 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
                const JointSetOnly& setOnly, JointRead& out) {
   out.geometry.count = 0;
   out.coordinateCount = 0;
+  out.coordinate[0] = out.coordinate[1] = out.coordinate[2] = 0.0;
   out.hasRows = true;
   out.unsupported = nullptr;
   switch (dJointGetType(j)) {
@@ -417,6 +447,9 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
     case dJointTypePR:
       readPR(j, body1, body2, out, world);
       break;
+    case dJointTypePU:
+      readPU(j, body1, body2, out, world);
+      break;
     case dJointTypeNull:
       out.hasRows = false;
       break;
@@ -426,7 +459,7 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
   }
 }
 
-void shiftLimits(JointDesc& desc, const double offset[2]) {
+void shiftLimits(JointDesc& desc, const double offset[3]) {
   if (auto* h = std::get_if<HingeJointDesc>(&desc)) {
     shift(h->limit, offset[0]);
   } else if (auto* s = std::get_if<SliderJointDesc>(&desc)) {
@@ -437,6 +470,10 @@ void shiftLimits(JointDesc& desc, const double offset[2]) {
   } else if (auto* pr = std::get_if<PrismaticRotoideJointDesc>(&desc)) {
     shift(pr->limitP, offset[0]);
     shift(pr->limitR, offset[1]);
+  } else if (auto* pu = std::get_if<PrismaticUniversalJointDesc>(&desc)) {
+    shift(pu->limit1, offset[0]);
+    shift(pu->limit2, offset[1]);
+    shift(pu->limitP, offset[2]);
   } else if (auto* x = std::get_if<SixDofJointDesc>(&desc)) {
     // Piston: coordinate 0 is the x translation, 1 the x rotation.
     x->axes[0].lo -= offset[0];

@@ -52,9 +52,9 @@ struct JointRead {
   JointDesc desc;
   JointGeometry geometry;
   int coordinateCount = 0;
-  double coordinate[2] = {0.0, 0.0};  // ODE's joint coordinates now
-  bool hasRows = true;                // false for dJointTypeNull
-  const char* unsupported = nullptr;  // an ODE kind or mode the core cannot model
+  double coordinate[3] = {0.0, 0.0, 0.0};  // ODE's joint coordinates now
+  bool hasRows = true;                     // false for dJointTypeNull
+  const char* unsupported = nullptr;       // an ODE kind or mode the core cannot model
 };
 
 // Reads ODE joint j. body1/body2 are the core ids of ODE's public body1
@@ -72,7 +72,7 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
 
 // Moves limits from ODE's coordinates to the core's: core = ODE - offset,
 // offset[i] being ODE's coordinate i when the core joint was made.
-void shiftLimits(JointDesc& desc, const double offset[2]);
+void shiftLimits(JointDesc& desc, const double offset[3]);
 
 const char* odeJointTypeName(int type);
 

@@ -382,8 +382,8 @@ void WorldBridge::makeJoint(MappedJoint& m, dJointID j, JointRead& read) {
   m.body1 = dJointGetBody(j, 0);
   m.body2 = dJointGetBody(j, 1);
   m.local = toLocal(read.geometry, m.body1, m.body2);
-  m.offset[0] = read.coordinate[0];
-  m.offset[1] = read.coordinate[1];
+  for (int k = 0; k < 3; ++k)
+    m.offset[k] = read.coordinate[k];
   shiftLimits(read.desc, m.offset);
   m.id = core_.createJoint(read.desc);
 }
@@ -409,6 +409,9 @@ void WorldBridge::syncJoints(const WorldRecord& record) {
       makeJoint(m, j, read);
     } else {
       shiftLimits(read.desc, m.offset);
+      if (auto* pu = std::get_if<PrismaticUniversalJointDesc>(&read.desc)) {
+        pu->axisPInFrameB = std::get<PrismaticUniversalJointDesc>(core_.joint(m.id)).axisPInFrameB;
+      }
       if (auto* motor = std::get_if<MotorJointDesc>(&read.desc)) {
         // Its axes are those of creation (the frames turn them since).
         const auto& made = std::get<MotorJointDesc>(core_.joint(m.id));

@@ -94,7 +94,7 @@ class WorldBridge {
     int type = -1;
     dBodyID body1 = nullptr, body2 = nullptr;
     JointGeometry local;  // geometry in its body's frame at creation
-    double offset[2] = {0.0, 0.0};
+    double offset[3] = {0.0, 0.0, 0.0};
     bool seen = false;
   };
 

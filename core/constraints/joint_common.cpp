@@ -106,6 +106,9 @@ const char* jointKindName(const JointDesc& d) {
     const char* operator()(const SixDofJointDesc&) const { return "6-DOF"; }
     const char* operator()(const DistanceJointDesc&) const { return "distance"; }
     const char* operator()(const PrismaticRotoideJointDesc&) const { return "prismatic-rotoide"; }
+    const char* operator()(const PrismaticUniversalJointDesc&) const {
+      return "prismatic-universal";
+    }
     const char* operator()(const MotorJointDesc& m) const {
       return m.angular ? "angular motor" : "linear motor";
     }

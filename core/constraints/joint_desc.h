@@ -140,6 +140,22 @@ struct PrismaticRotoideJointDesc {
   Motor motorP, motorR;
 };
 
+// Prismatic then universal (ODE's PU): B's anchor stays on the line
+// through A's along axisP (fixed in B), and the bodies turn as a universal
+// joint does about axis1 (fixed in A) and axis2 (fixed in B), kept
+// perpendicular. Limits and motors on the slide and both angles.
+struct PrismaticUniversalJointDesc {
+  JointCommon common;
+  Vec3 anchor = Vec3::Zero();
+  Vec3 axisP = Vec3::UnitZ();
+  Vec3 axis1 = Vec3::UnitX();
+  Vec3 axis2 = Vec3::UnitY();
+  Limit limitP, limit1, limit2;
+  Motor motorP, motor1, motor2;
+  // Set at creation: axisP in the joint frame (which turns with B).
+  Vec3 axisPInFrameB = Vec3::UnitZ();
+};
+
 // Motors (and stops) on up to three axes, constraining nothing else: ODE's
 // AMotor (angular, user mode) and LMotor (linear). Each axis is fixed in
 // the world, in A or in B (given in world coordinates at creation; they
@@ -163,9 +179,10 @@ struct MotorJointDesc {
   Axis axes[3];
 };
 
-using JointDesc = std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc,
-                               UniversalJointDesc, ConeTwistJointDesc, SixDofJointDesc,
-                               DistanceJointDesc, MotorJointDesc, PrismaticRotoideJointDesc>;
+using JointDesc =
+    std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc, UniversalJointDesc,
+                 ConeTwistJointDesc, SixDofJointDesc, DistanceJointDesc, MotorJointDesc,
+                 PrismaticRotoideJointDesc, PrismaticUniversalJointDesc>;
 
 inline const JointCommon& common(const JointDesc& d) {
   return std::visit([](const auto& j) -> const JointCommon& { return j.common; }, d);

@@ -27,6 +27,7 @@ BLOCKSTEP_JOINT_KIND(SixDofJointDesc)
 BLOCKSTEP_JOINT_KIND(DistanceJointDesc)
 BLOCKSTEP_JOINT_KIND(MotorJointDesc)
 BLOCKSTEP_JOINT_KIND(PrismaticRotoideJointDesc)
+BLOCKSTEP_JOINT_KIND(PrismaticUniversalJointDesc)
 
 #undef BLOCKSTEP_JOINT_KIND
 

@@ -418,6 +418,36 @@ TEST(OdeJoints, PRSlidesAndSwings) {
   EXPECT_LT(TwinRun::maxOf(run.block, 0), 0.3 + 0.005);
 }
 
+// PU: a body hangs on a universal joint whose anchor slides along a
+// tilted rail (a stop and a motor on the slide), swinging about both axes.
+TEST(OdeJoints, PUSlidesAndSwings) {
+  auto build = [](OdeScene& s) {
+    dBodyID bob = s.box(0.0, 0.0, 0.6);
+    dBodySetLinearVel(bob, 0.5, 0.8, 0.0);
+    dJointID j = s.add(dJointCreatePU(s.world, 0), bob, nullptr);
+    dJointSetPUAnchor(j, 0.0, 0.0, 1.0);
+    dJointSetPUAxis1(j, 1.0, 0.0, 0.0);
+    dJointSetPUAxis2(j, 0.0, 1.0, 0.0);
+    dJointSetPUAxis3(j, 0.0, 0.0, 1.0);  // the slide: vertical
+    dJointSetPUParam(j, dParamLoStop3, -0.2);
+    dJointSetPUParam(j, dParamHiStop3, 0.2);
+  };
+  auto probe = [](OdeScene& s) {
+    return std::vector<double>{dJointGetPUPosition(s.joints[0]), dJointGetPUAngle1(s.joints[0]),
+                               dJointGetPUAngle2(s.joints[0])};
+  };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("PU position (m)", 0);
+  run.report("PU angle 1 (rad)", 1);
+  run.report("PU angle 2 (rad)", 2);
+  EXPECT_GT(TwinRun::maxOf(run.direct, 1), 0.1);
+  EXPECT_GT(TwinRun::maxOf(run.direct, 2), 0.1);
+  EXPECT_NEAR(run.block.back()[0], -0.2, 0.005);  // resting on the lower stop
+  EXPECT_LT(run.maxDifference(0), 0.01);
+  EXPECT_LT(run.maxDifference(1), 0.03);
+  EXPECT_LT(run.maxDifference(2), 0.03);
+}
+
 // A fixed joint welds a second body under a ball-jointed first one: the
 // pair swings as one rigid pendulum.
 TEST(OdeJoints, FixedWeldSwingsAsOneBody) {
