@@ -338,6 +338,26 @@ void readPU(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldPa
   out.coordinate[2] = dJointGetPUPosition(j);
 }
 
+// DHinge: DBall's rod plus the axis (fixed in body1) kept aligned and the
+// anchors kept in one plane across it.
+void readDHinge(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  dVector3 a1, a2, axis;
+  dJointGetDHingeAnchor1(j, a1);
+  dJointGetDHingeAnchor2(j, a2);
+  dJointGetDHingeAxis(j, axis);
+  DoubleHingeJointDesc d;
+  d.common = commonOf(b1, b2,
+                      w.of(dJointGetDHingeParam(j, dParamERP), dJointGetDHingeParam(j, dParamCFM)));
+  d.anchorA = vec(a2);
+  d.anchorB = vec(a1);
+  d.axis = vec(axis);
+  d.length = dJointGetDHingeDistance(j);
+  out.desc = d;
+  out.geometry.add(vec(a1), true, 1);
+  out.geometry.add(vec(a2), true, 2);
+  out.geometry.add(vec(axis), false, 1);
+}
+
 // DBall: the anchors keep ODE's set distance (a rod).
 void readDBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
   dVector3 a1, a2;
@@ -449,6 +469,9 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
       break;
     case dJointTypePU:
       readPU(j, body1, body2, out, world);
+      break;
+    case dJointTypeDHinge:
+      readDHinge(j, body1, body2, out, world);
       break;
     case dJointTypeNull:
       out.hasRows = false;

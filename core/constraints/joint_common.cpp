@@ -106,6 +106,7 @@ const char* jointKindName(const JointDesc& d) {
     const char* operator()(const SixDofJointDesc&) const { return "6-DOF"; }
     const char* operator()(const DistanceJointDesc&) const { return "distance"; }
     const char* operator()(const PrismaticRotoideJointDesc&) const { return "prismatic-rotoide"; }
+    const char* operator()(const DoubleHingeJointDesc&) const { return "double hinge"; }
     const char* operator()(const PrismaticUniversalJointDesc&) const {
       return "prismatic-universal";
     }

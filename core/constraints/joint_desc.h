@@ -156,6 +156,18 @@ struct PrismaticUniversalJointDesc {
   Vec3 axisPInFrameB = Vec3::UnitZ();
 };
 
+// Double hinge (ODE's DHinge): two anchors, one on each body, at a fixed
+// distance, and the axis (fixed in both) kept aligned, with both anchors
+// in the same plane across it: a rod hinged at both ends about parallel
+// axes. 4 rows, one block.
+struct DoubleHingeJointDesc {
+  JointCommon common;
+  Vec3 anchorA = Vec3::Zero();
+  Vec3 anchorB = Vec3::Zero();
+  Vec3 axis = Vec3::UnitZ();
+  double length = -1.0;  // < 0: the distance at creation
+};
+
 // Motors (and stops) on up to three axes, constraining nothing else: ODE's
 // AMotor (angular, user mode) and LMotor (linear). Each axis is fixed in
 // the world, in A or in B (given in world coordinates at creation; they
@@ -182,7 +194,7 @@ struct MotorJointDesc {
 using JointDesc =
     std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc, UniversalJointDesc,
                  ConeTwistJointDesc, SixDofJointDesc, DistanceJointDesc, MotorJointDesc,
-                 PrismaticRotoideJointDesc, PrismaticUniversalJointDesc>;
+                 PrismaticRotoideJointDesc, PrismaticUniversalJointDesc, DoubleHingeJointDesc>;
 
 inline const JointCommon& common(const JointDesc& d) {
   return std::visit([](const auto& j) -> const JointCommon& { return j.common; }, d);

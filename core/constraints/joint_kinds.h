@@ -28,6 +28,7 @@ BLOCKSTEP_JOINT_KIND(DistanceJointDesc)
 BLOCKSTEP_JOINT_KIND(MotorJointDesc)
 BLOCKSTEP_JOINT_KIND(PrismaticRotoideJointDesc)
 BLOCKSTEP_JOINT_KIND(PrismaticUniversalJointDesc)
+BLOCKSTEP_JOINT_KIND(DoubleHingeJointDesc)
 
 #undef BLOCKSTEP_JOINT_KIND
 
