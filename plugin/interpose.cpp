@@ -210,7 +210,16 @@ void dJointSetLMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal 
 
 void dJointSetAMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal z) {
   BLOCKSTEP_REAL(dJointSetAMotorAxis);
-  if (goodAxis("dJointSetAMotorAxis", x, y, z)) real_dJointSetAMotorAxis(j, anum, rel, x, y, z);
+  if (!goodAxis("dJointSetAMotorAxis", x, y, z)) return;
+  real_dJointSetAMotorAxis(j, anum, rel, x, y, z);
+  const double world[3] = {x, y, z};
+  Registry::instance().amotorAxisSet(j, anum, rel, world);
+}
+
+void dJointSetAMotorMode(dJointID j, int mode) {
+  BLOCKSTEP_REAL(dJointSetAMotorMode);
+  real_dJointSetAMotorMode(j, mode);
+  Registry::instance().amotorModeSet(j);
 }
 
 // Plane2D's motors have setters only; the registry keeps what they set.

@@ -200,13 +200,55 @@ MotorJointDesc::Frame motorFrame(int rel) {
                     : MotorJointDesc::Frame::World;
 }
 
-// AMotor in user mode: a motor and stops on each of its 1-3 axes; the
-// stops act on the angles the program sets (dJointSetAMotorAngle), as in
-// ODE. Euler mode needs ODE's internal reference vectors, which its API
-// does not give back.
-void readAMotor(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
-  if (dJointGetAMotorMode(j) != dAMotorUser) {
-    out.unsupported = "Euler mode (dAMotorEuler) has no blockstep mapping yet";
+// AMotor. User mode: a motor and stops on each of its 1-3 axes; the stops
+// act on the angles the program sets (dJointSetAMotorAngle), as in ODE.
+// Euler mode: the core motor joint's Euler form, from axis 0 (fixed in
+// body1), axis 2 (fixed in body2) and the reference vectors ODE derived
+// when they were set (the registry records them as ODE keeps them).
+void readAMotorEuler(dJointID j, BodyId b1, BodyId b2, const JointSetOnly& set, JointRead& out,
+                     const JointWorldParams& w) {
+  const dBodyID body1 = dJointGetBody(j, 0), body2 = dJointGetBody(j, 1);
+  if (!body1) {
+    out.unsupported = "Euler mode (dAMotorEuler) attached with body1 = 0";
+    return;
+  }
+  auto rotate = [](dBodyID b, const Vec3& v) -> Vec3 {
+    if (!b) return v;
+    const dReal* q = dBodyGetQuaternion(b);
+    return Quat(q[0], q[1], q[2], q[3]) * v;
+  };
+  MotorJointDesc d;
+  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
+  d.angular = true;
+  d.euler = true;
+  d.axisCount = 3;
+  d.axes[0].axis = rotate(body1, set.amotorAxis[0]);
+  d.axes[0].frame = MotorJointDesc::Frame::B;
+  d.axes[1].axis = Vec3::UnitX();  // derived each sub-step
+  d.axes[2].axis = rotate(body2, set.amotorAxis[2]);
+  d.axes[2].frame = MotorJointDesc::Frame::A;
+  d.eulerRefB = rotate(body1, set.eulerRef1);
+  d.eulerRefA = rotate(body2, set.eulerRef2);
+  if (d.axes[0].axis.cross(d.axes[2].axis).norm() < 1e-9 || d.eulerRefA.norm() < 1e-9 ||
+      d.eulerRefB.norm() < 1e-9) {
+    out.unsupported = "Euler mode (dAMotorEuler) without axes 0 and 2 set";
+    return;
+  }
+  for (int i = 0; i < 3; ++i) {
+    readAxis(j, dJointGetAMotorParam, dParamGroup * i, d.axes[i].limit, d.axes[i].motor);
+  }
+  out.desc = d;
+  // Remade when the program sets the axes again.
+  out.geometry.add(set.amotorAxis[0], false, 0);
+  out.geometry.add(set.amotorAxis[2], false, 0);
+  out.geometry.add(set.eulerRef1, false, 0);
+  out.geometry.add(set.eulerRef2, false, 0);
+}
+
+void readAMotor(dJointID j, BodyId b1, BodyId b2, const JointSetOnly& set, JointRead& out,
+                const JointWorldParams& w) {
+  if (dJointGetAMotorMode(j) == dAMotorEuler) {
+    readAMotorEuler(j, b1, b2, set, out, w);
     return;
   }
   MotorJointDesc d;
@@ -456,7 +498,7 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
       readPiston(j, body1, body2, out, world);
       break;
     case dJointTypeAMotor:
-      readAMotor(j, body1, body2, out, world);
+      readAMotor(j, body1, body2, setOnly, out, world);
       break;
     case dJointTypeLMotor:
       readLMotor(j, body1, body2, setOnly.lmotorRel, out, world);

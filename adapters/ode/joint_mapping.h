@@ -65,6 +65,8 @@ struct JointSetOnly {
   int lmotorRel[3] = {0, 0, 0};      // LMotor axis frames
   double plane2dVel[3] = {0, 0, 0};  // Plane2D motors x, y, angle
   double plane2dFMax[3] = {0, 0, 0};
+  Vec3 amotorAxis[3];  // AMotor axes in the frames ODE keeps them in
+  Vec3 eulerRef1 = Vec3::Zero(), eulerRef2 = Vec3::Zero();  // Euler mode
 };
 
 void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& world,

@@ -2,6 +2,8 @@
 
 #include "adapters/ode/world_bridge.h"
 
+#include <cmath>
+
 namespace blockstep::ode {
 
 Registry::Registry() = default;
@@ -113,6 +115,72 @@ void Registry::plane2dParamSet(dJointID joint, int motor, int parameter, double 
   if (!r || motor < 0 || motor > 2) return;
   if (parameter == dParamVel) r->plane2dVel[motor] = value;
   if (parameter == dParamFMax) r->plane2dFMax[motor] = value;
+}
+
+namespace {
+
+// v = R^T w for an ODE body's rotation (its frame from the world's).
+void toBody(dBodyID b, const double w[3], double v[3]) {
+  const dReal* R = dBodyGetRotation(b);
+  for (int i = 0; i < 3; ++i)
+    v[i] = R[i] * w[0] + R[4 + i] * w[1] + R[8 + i] * w[2];
+}
+void toWorld(dBodyID b, const double v[3], double w[3]) {
+  const dReal* R = dBodyGetRotation(b);
+  for (int i = 0; i < 3; ++i)
+    w[i] = R[4 * i] * v[0] + R[4 * i + 1] * v[1] + R[4 * i + 2] * v[2];
+}
+
+}  // namespace
+
+// As ODE's setAxisValue: the axis, given in world coordinates, is kept in
+// the frame of the body it is relative to (rel 1: body1, 2: body2).
+void Registry::amotorAxisSet(dJointID joint, int axis, int rel, const double world[3]) {
+  std::lock_guard lock(mutex_);
+  JointRecord* r = joints_.find(joint);
+  if (!r || axis < 0 || axis > 2) return;
+  const dBodyID b1 = dJointGetBody(joint, 0), b2 = dJointGetBody(joint, 1);
+  double* local = r->amotorAxis[axis];
+  if (rel == 1 && b1) {
+    toBody(b1, world, local);
+  } else if (rel == 2 && b2) {
+    toBody(b2, world, local);
+  } else {
+    for (int i = 0; i < 3; ++i)
+      local[i] = world[i];
+  }
+  const double n = std::sqrt(local[0] * local[0] + local[1] * local[1] + local[2] * local[2]);
+  if (n > 0.0) {
+    for (int i = 0; i < 3; ++i)
+      local[i] /= n;
+  }
+  updateEulerReferences(joint, *r);
+}
+
+void Registry::amotorModeSet(dJointID joint) {
+  std::lock_guard lock(mutex_);
+  if (JointRecord* r = joints_.find(joint)) updateEulerReferences(joint, *r);
+}
+
+// ODE's setEulerReferenceVectors (amotor.cpp), for a joint whose body1 is
+// set: reference2 = axis 0 (fixed in body1) in body2's frame, reference1
+// = axis 2 (fixed in body2, or the world) in body1's frame.
+void Registry::updateEulerReferences(dJointID joint, JointRecord& r) {
+  if (dJointGetAMotorMode(joint) != dAMotorEuler) return;
+  const dBodyID b1 = dJointGetBody(joint, 0), b2 = dJointGetBody(joint, 1);
+  if (!b1) return;  // reversed: refused when stepped
+  double w[3];
+  toWorld(b1, r.amotorAxis[0], w);
+  if (b2) {
+    toBody(b2, w, r.eulerRef2);
+    toWorld(b2, r.amotorAxis[2], w);
+  } else {
+    for (int i = 0; i < 3; ++i)
+      r.eulerRef2[i] = w[i];
+    for (int i = 0; i < 3; ++i)
+      w[i] = r.amotorAxis[2][i];
+  }
+  toBody(b1, w, r.eulerRef1);
 }
 
 void Registry::worldDestroyed(dWorldID world) {

@@ -32,6 +32,11 @@ struct JointRecord {
   // Plane2D motors (x, y, angle): velocity and max force. ODE has no getter.
   double plane2dVel[3] = {0.0, 0.0, 0.0};
   double plane2dFMax[3] = {0.0, 0.0, 0.0};
+  // AMotor: each axis in the frame ODE keeps it in (its m_axis), and the
+  // Euler-mode reference vectors ODE derives from them when they are set
+  // (reference1 in body1's frame, reference2 in body2's or the world's).
+  double amotorAxis[3][3] = {};
+  double eulerRef1[3] = {}, eulerRef2[3] = {};
 };
 
 struct WorldRecord {
@@ -57,6 +62,8 @@ class Registry {
   void worldDestroyed(dWorldID world);
   void lmotorAxisSet(dJointID joint, int axis, int rel);
   void plane2dParamSet(dJointID joint, int motor, int parameter, double value);
+  void amotorAxisSet(dJointID joint, int axis, int rel, const double world[3]);
+  void amotorModeSet(dJointID joint);
 
   // nullptr for a world never seen.
   WorldRecord* world(dWorldID world);
@@ -69,6 +76,7 @@ class Registry {
 
  private:
   void removeJoint(dJointID joint, JointRecord& record);
+  static void updateEulerReferences(dJointID joint, JointRecord& record);
 
   std::recursive_mutex mutex_;
   PointerMap<dWorldID, std::unique_ptr<WorldRecord>> worlds_;

@@ -195,7 +195,11 @@ bool WorldBridge::readAll(const WorldRecord& record) {
         setOnly.lmotorRel[k] = rec->lmotorRel[k];
         setOnly.plane2dVel[k] = rec->plane2dVel[k];
         setOnly.plane2dFMax[k] = rec->plane2dFMax[k];
+        setOnly.amotorAxis[k] =
+            Vec3(rec->amotorAxis[k][0], rec->amotorAxis[k][1], rec->amotorAxis[k][2]);
       }
+      setOnly.eulerRef1 = Vec3(rec->eulerRef1[0], rec->eulerRef1[1], rec->eulerRef1[2]);
+      setOnly.eulerRef2 = Vec3(rec->eulerRef2[0], rec->eulerRef2[1], rec->eulerRef2[2]);
     }
     readJoint(j, coreBody(b1), coreBody(b2), params, setOnly, read);
     if (read.unsupported) {

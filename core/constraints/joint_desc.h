@@ -189,6 +189,14 @@ struct MotorJointDesc {
   bool angular = true;
   int axisCount = 1;  // 1..3
   Axis axes[3];
+  // ODE's AMotor Euler mode (angular, 3 axes): axes[0].axis is fixed in
+  // B, axes[2].axis in A (perpendicular at creation), eulerRefB/A the
+  // reference vectors fixed in B/A (world at creation). The three angles
+  // and their rows (ax1 x ax2, ax1 = unit(ax2 x ax0), ax0 x ax1) are
+  // computed from the current poses each (sub-)step, as ODE computes them;
+  // axes[i].value is then unused.
+  bool euler = false;
+  Vec3 eulerRefB = Vec3::UnitX(), eulerRefA = Vec3::UnitX();
 };
 
 using JointDesc =

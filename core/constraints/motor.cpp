@@ -3,6 +3,9 @@
 // turn with the body they are fixed in. The frames make each body's frame
 // the world frame at creation, so p.frameA * axis is an A-fixed axis now.
 // Linear rows act on the centres of mass (anchors there), as ODE's LMotor.
+// The Euler form computes ODE's AMotor Euler angles from the current
+// poses in every sub-step (a value frozen over the sub-steps repeated a
+// stop's correction in each and blew up).
 #include <cmath>
 #include <string>
 
@@ -16,6 +19,12 @@ namespace blockstep {
 void validateJoint(const MotorJointDesc& d) {
   validateCommon(d.common, d.angular ? "angular motor" : "linear motor");
   if (d.axisCount < 1 || d.axisCount > 3) throw Error("motor joint needs 1 to 3 axes");
+  if (d.euler &&
+      (!d.angular || d.axisCount != 3 || d.axes[0].axis.cross(d.axes[2].axis).norm() < 1e-6 ||
+       !(d.eulerRefA.norm() > 1e-9) || !(d.eulerRefB.norm() > 1e-9))) {
+    throw Error(
+        "Euler motor joint needs 3 angular axes, axes 1 and 3 not parallel, and references");
+  }
   static const char* names[3] = {"motor joint axis 1", "motor joint axis 2", "motor joint axis 3"};
   for (int i = 0; i < d.axisCount; ++i) {
     requireAxis(d.axes[i].axis, names[i]);
@@ -35,8 +44,26 @@ JointFrames setupJoint(MotorJointDesc& d, const Body& a, const Body& b) {
   return f;
 }
 
+// ODE's Euler angles (amotor.cpp computeEulerAngles) and their rows.
+void buildEulerRows(const MotorJointDesc& d, const JointPose& p, RowWriter& out) {
+  const Vec3 ax0 = p.frameB * d.axes[0].axis;
+  const Vec3 ax2 = p.frameA * d.axes[2].axis;
+  const Vec3 refB = p.frameB * d.eulerRefB, refA = p.frameA * d.eulerRefA;
+  const Vec3 ax1 = ax2.cross(ax0).normalized();
+  const double angle[3] = {-std::atan2(ax2.dot(ax0.cross(refB)), ax2.dot(refB)),
+                           -std::atan2(ax2.dot(ax0), ax2.dot(ax0.cross(ax1))),
+                           -std::atan2(refA.dot(ax1), refA.dot(ax1.cross(ax2)))};
+  const Vec3 rowAxis[3] = {ax1.cross(ax2), ax1, ax0.cross(ax1)};
+  ConstraintRow rate;
+  for (int i = 0; i < 3; ++i) {
+    angularAxisRow(rowAxis[i], 0.0, rate);
+    addCoordinateRows(rate, angle[i], d.axes[i].limit, d.axes[i].motor, kCoordinateSlots * i, out);
+  }
+}
+
 void buildJointRows(const MotorJointDesc& d, const JointPose& p, RowWriter& out) {
   using Frame = MotorJointDesc::Frame;
+  if (d.euler) return buildEulerRows(d, p, out);
   ConstraintRow rate;
   for (int i = 0; i < d.axisCount; ++i) {
     const MotorJointDesc::Axis& ax = d.axes[i];

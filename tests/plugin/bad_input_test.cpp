@@ -169,16 +169,13 @@ TEST(OdeBadInput, WorldDestroyedWithGroupedJointsIsForgotten) {
 // ODE's quickstep; the stats say so.
 TEST(OdeBadInput, UnsupportedJointFallsBackToOdeOnce) {
   Pendulum p;
-  dJointID motor = dJointCreateAMotor(p.s.world, 0);
-  dJointAttach(motor, p.bob, nullptr);
-  dJointSetAMotorMode(motor, dAMotorEuler);  // needs ODE's hidden reference vectors
-  dJointSetAMotorAxis(motor, 0, 1, 1.0, 0.0, 0.0);
-  dJointSetAMotorAxis(motor, 2, 2, 0.0, 0.0, 1.0);
+  dJointID motor = dJointCreateTransmission(p.s.world, 0);  // gears: no mapping yet
+  dJointAttach(motor, p.bob, p.s.box(2.0, 0.0, 1.0));
   testing::internal::CaptureStderr();
   for (int k = 0; k < 5; ++k)
     ASSERT_EQ(dWorldBlockStep(p.s.world, kStep), 1);
   const std::string err = testing::internal::GetCapturedStderr();
-  const std::string said = "angular motor (AMotor) joint: Euler mode";
+  const std::string said = "ODE transmission joint";
   EXPECT_NE(err.find(said), std::string::npos) << err;
   EXPECT_EQ(err.find(said, err.find(said) + 1), std::string::npos) << "said more than once";
   EXPECT_NE(err.find("stepped by ODE"), std::string::npos) << err;

@@ -329,6 +329,61 @@ TEST(OdeJoints, AMotorDrivesAndHolds) {
   EXPECT_LT(run.maxDifference(1), 0.01);
 }
 
+// AMotor in Euler mode on a ball joint (a ragdoll shoulder): the axes as
+// ODE's Euler mode has them (0 fixed in the upper body, 2 in the lower);
+// its angles and reference vectors are rebuilt from what the program set.
+void buildEulerShoulder(OdeScene& s, double swing, double spin) {
+  dBodyID upper = s.box(0.0, 0.0, 1.0, 2.0);
+  dBodyID lower = s.box(0.0, 0.0, 0.6);
+  dBodySetAngularVel(lower, swing, 0.0, spin);
+  dBodySetLinearVel(lower, 0.0, -0.2 * swing, 0.0);  // consistent with the anchor at z = 0.8
+  dJointID weld = s.add(dJointCreateFixed(s.world, 0), upper, nullptr);
+  dJointSetFixed(weld);
+  dJointID ball = s.add(dJointCreateBall(s.world, 0), upper, lower);
+  dJointSetBallAnchor(ball, 0.0, 0.0, 0.8);
+  dJointID motor = s.add(dJointCreateAMotor(s.world, 0), upper, lower);
+  dJointSetAMotorMode(motor, dAMotorEuler);
+  dJointSetAMotorAxis(motor, 0, 1, 1.0, 0.0, 0.0);
+  dJointSetAMotorAxis(motor, 2, 2, 0.0, 0.0, 1.0);
+}
+
+// The swing about x meets a stop on the first Euler angle and stops there
+// (no bounce), as with dWorldStep.
+TEST(OdeJoints, AMotorEulerStopHoldsTheSwing) {
+  auto build = [](OdeScene& s) {
+    buildEulerShoulder(s, 3.0, 0.0);
+    dJointSetAMotorParam(s.joints[2], dParamLoStop, -0.3);
+    dJointSetAMotorParam(s.joints[2], dParamHiStop, 0.3);
+  };
+  auto probe = [](OdeScene& s) {
+    const dReal* p = dBodyGetPosition(s.bodies[1]);
+    return std::vector<double>{std::atan2(p[1], 0.8 - p[2])};  // the swing angle
+  };
+  const TwinRun run = runTwin(build, probe, 0.5, kStep, 20, highEffort);
+  run.report("swing angle (rad)", 0);
+  // Free, 3 rad/s would swing it to 1.2 rad; the stop takes it at 0.3.
+  EXPECT_NEAR(TwinRun::maxOf(run.direct, 0), 0.3, 0.02);
+  EXPECT_NEAR(TwinRun::maxOf(run.block, 0), 0.3, 0.02);
+  // Off the stop the swings part by up to 0.044 rad (ODE's stop is the
+  // softer one, ERP 0.2 per step).
+  EXPECT_LT(run.maxDifference(0), 0.05);
+}
+
+// A motor on the third Euler angle spins the lower body up, as with
+// dWorldStep.
+TEST(OdeJoints, AMotorEulerMotorSpins) {
+  auto build = [](OdeScene& s) {
+    buildEulerShoulder(s, 0.0, 0.0);
+    dJointSetAMotorParam(s.joints[2], dParamVel3, 2.0);
+    dJointSetAMotorParam(s.joints[2], dParamFMax3, 0.05);
+  };
+  auto probe = [](OdeScene& s) { return std::vector<double>{dBodyGetAngularVel(s.bodies[1])[2]}; };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("spin (rad/s)", 0);
+  EXPECT_GT(TwinRun::maxOf(run.direct, 0), 1.0);
+  EXPECT_LT(run.maxDifference(0), 0.02);
+}
+
 // LMotor: a force-limited linear motor along global x pulls a free body
 // up to its speed (a = FMax / m), as dWorldStep has it.
 TEST(OdeJoints, LMotorPullsUpToSpeed) {
