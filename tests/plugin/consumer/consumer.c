@@ -27,8 +27,8 @@ int main(void) {
   const double gap = fabs(a1[0] - a2[0]) + fabs(a1[1] - a2[1]) + fabs(a1[2] - a2[2]);
   dBlockStepStats stats;
   dWorldGetBlockStepStats(w, &stats);
-  const int ok = gap < 1e-3 && fabs(dJointGetHingeAngle(j)) > 0.1 &&
-                 stats.stepper == dBlockStepperBlockstep;
+  const int ok =
+      gap < 1e-3 && fabs(dJointGetHingeAngle(j)) > 0.1 && stats.stepper == dBlockStepperBlockstep;
   printf("%s\n", ok ? "ok" : "FAILED");
   dWorldDestroy(w);
   dCloseODE();
