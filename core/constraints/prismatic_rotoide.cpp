@@ -32,12 +32,9 @@ void validateJoint(const PrismaticRotoideJointDesc& d) {
 }
 
 JointFrames setupJoint(PrismaticRotoideJointDesc& d, const Body& a, const Body& b) {
-  const Vec3 x = d.axisR.normalized();
-  const Vec3 y = (d.axisP - d.axisP.dot(x) * x).normalized();
-  d.axisR = x;
-  d.axisP = y;
-  Mat3 R;
-  R << x, y, x.cross(y);
+  const Mat3 R = frameFromAxes(d.axisR, d.axisP);
+  d.axisR = R.col(0);
+  d.axisP = R.col(1);
   return framesAt(a, b, d.anchor, Quat(R));
 }
 

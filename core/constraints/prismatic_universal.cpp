@@ -30,10 +30,7 @@ void validateJoint(const PrismaticUniversalJointDesc& d) {
 }
 
 JointFrames setupJoint(PrismaticUniversalJointDesc& d, const Body& a, const Body& b) {
-  const Vec3 x = d.axis1.normalized();
-  const Vec3 y = (d.axis2 - d.axis2.dot(x) * x).normalized();
-  Mat3 R;
-  R << x, y, x.cross(y);
+  const Mat3 R = frameFromAxes(d.axis1, d.axis2);
   d.axisPInFrameB = R.transpose() * d.axisP.normalized();
   return framesAt(a, b, d.anchor, Quat(R));
 }

@@ -30,12 +30,9 @@ void validateJoint(const UniversalJointDesc& d) {
 }
 
 JointFrames setupJoint(UniversalJointDesc& d, const Body& a, const Body& b) {
-  const Vec3 x = d.axis1.normalized();
-  const Vec3 y = (d.axis2 - d.axis2.dot(x) * x).normalized();
-  d.axis1 = x;
-  d.axis2 = y;
-  Mat3 R;
-  R << x, y, x.cross(y);
+  const Mat3 R = frameFromAxes(d.axis1, d.axis2);
+  d.axis1 = R.col(0);
+  d.axis2 = R.col(1);
   return framesAt(a, b, d.anchor, Quat(R));
 }
 

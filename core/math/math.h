@@ -58,6 +58,16 @@ inline void perpendicularBasis(const Vec3& n, Vec3& t1, Vec3& t2) {
   t2 = n.cross(t1);
 }
 
+// The joint frame (as columns) whose x axis is `x` and whose y axis is
+// `y` made perpendicular to it (Gram-Schmidt); z completes it.
+inline Mat3 frameFromAxes(const Vec3& x, const Vec3& y) {
+  const Vec3 u = x.normalized();
+  const Vec3 v = (y - y.dot(u) * u).normalized();
+  Mat3 R;
+  R << u, v, u.cross(v);
+  return R;
+}
+
 // A rotation taking the x axis to `axis` (unit): a joint frame whose first
 // axis is the joint axis.
 inline Quat frameFromAxis(const Vec3& axis) {
