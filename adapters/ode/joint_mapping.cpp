@@ -94,61 +94,66 @@ void readFixed(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorl
   out.desc = d;
 }
 
-// Universal: ODE's axis1 is fixed in body1 (core B), axis2 in body2 (core
-// A); the core's axis1 is the one fixed in A. So core axis1 = ODE axis2,
-// core axis2 = ODE axis1, and their limits and motors swap likewise.
-void readUniversal(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+// ODE's getters of a two-axis joint (universal, hinge2).
+struct TwoAxisGetters {
+  void (*anchor)(dJointID, dVector3);
+  void (*anchor2)(dJointID, dVector3);
+  void (*axis1)(dJointID, dVector3);
+  void (*axis2)(dJointID, dVector3);
+  ParamGetter param;
+  dReal (*angle1)(dJointID);
+  dReal (*angle2)(dJointID);
+};
+
+// Universal and hinge2: ODE's axis1 is fixed in body1 (core B), axis2 in
+// body2 (core A); the core's axis1 is the one fixed in A. So core axis1 =
+// ODE axis2, core axis2 = ODE axis1, and their limits, motors and angles
+// swap likewise.
+UniversalJointDesc readTwoAxes(dJointID j, BodyId b1, BodyId b2, const TwoAxisGetters& get,
+                               JointRead& out, const JointWorldParams& w) {
   dVector3 a1, a2, axis1, axis2;
-  dJointGetUniversalAnchor(j, a1);
-  dJointGetUniversalAnchor2(j, a2);
-  dJointGetUniversalAxis1(j, axis1);
-  dJointGetUniversalAxis2(j, axis2);
+  get.anchor(j, a1);
+  get.anchor2(j, a2);
+  get.axis1(j, axis1);
+  get.axis2(j, axis2);
   UniversalJointDesc d;
   d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
   d.anchor = vec(a1);
   d.axis1 = vec(axis2);
   d.axis2 = vec(axis1);
-  readAxis(j, dJointGetUniversalParam, dParamGroup, d.limit1, d.motor1);
-  readAxis(j, dJointGetUniversalParam, 0, d.limit2, d.motor2);
-  out.desc = d;
+  readAxis(j, get.param, dParamGroup, d.limit1, d.motor1);
+  readAxis(j, get.param, 0, d.limit2, d.motor2);
   out.geometry.add(vec(a1), true, 1);
   out.geometry.add(vec(a2), true, 2);
   out.geometry.add(vec(axis1), false, 1);
   out.geometry.add(vec(axis2), false, 2);
   out.coordinateCount = 2;
-  out.coordinate[0] = dJointGetUniversalAngle2(j);  // core angle 1
-  out.coordinate[1] = dJointGetUniversalAngle1(j);  // core angle 2
+  out.coordinate[0] = get.angle2(j);  // core angle 1
+  out.coordinate[1] = get.angle1(j);  // core angle 2
+  return d;
 }
 
-// Hinge2 (a steered, sprung wheel): axis1 (steering and suspension) is
-// fixed in body1, axis2 (the axle) in body2. It is the core's universal
-// joint with the axes swapped as for ODE's universal, plus a suspension
+void readUniversal(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  static constexpr TwoAxisGetters kUniversal{dJointGetUniversalAnchor, dJointGetUniversalAnchor2,
+                                             dJointGetUniversalAxis1,  dJointGetUniversalAxis2,
+                                             dJointGetUniversalParam,  dJointGetUniversalAngle1,
+                                             dJointGetUniversalAngle2};
+  out.desc = readTwoAxes(j, b1, b2, kUniversal, out, w);
+}
+
+// Hinge2 (a steered, sprung wheel): axis1 (steering and suspension) in
+// body1, axis2 (the axle) in body2: the universal joint plus a suspension
 // along ODE's axis1 (SuspensionERP / SuspensionCFM). ODE's limit-motor 1
 // acts on the steering angle, 2 on the axle.
 void readHinge2(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
-  dVector3 a1, a2, axis1, axis2;
-  dJointGetHinge2Anchor(j, a1);
-  dJointGetHinge2Anchor2(j, a2);
-  dJointGetHinge2Axis1(j, axis1);
-  dJointGetHinge2Axis2(j, axis2);
-  UniversalJointDesc d;
-  d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
-  d.anchor = vec(a1);
-  d.axis1 = vec(axis2);
-  d.axis2 = vec(axis1);
-  readAxis(j, dJointGetHinge2Param, dParamGroup, d.limit1, d.motor1);
-  readAxis(j, dJointGetHinge2Param, 0, d.limit2, d.motor2);
+  static constexpr TwoAxisGetters kHinge2{
+      dJointGetHinge2Anchor, dJointGetHinge2Anchor2, dJointGetHinge2Axis1, dJointGetHinge2Axis2,
+      dJointGetHinge2Param,  dJointGetHinge2Angle1,  dJointGetHinge2Angle2};
+  UniversalJointDesc d = readTwoAxes(j, b1, b2, kHinge2, out, w);
   d.suspension = true;
   d.suspensionSoftness = w.of(dJointGetHinge2Param(j, dParamSuspensionERP),
                               dJointGetHinge2Param(j, dParamSuspensionCFM));
   out.desc = d;
-  out.geometry.add(vec(a1), true, 1);
-  out.geometry.add(vec(a2), true, 2);
-  out.geometry.add(vec(axis1), false, 1);
-  out.geometry.add(vec(axis2), false, 2);
-  out.coordinateCount = 2;
-  out.coordinate[0] = dJointGetHinge2Angle2(j);  // core angle 1 (axle)
-  out.coordinate[1] = dJointGetHinge2Angle1(j);  // core angle 2 (steering)
 }
 
 // One axis of a core 6-DOF joint from an ODE limit-motor: free, or
