@@ -413,15 +413,6 @@ void WorldBridge::syncJoints(const WorldRecord& record) {
       makeJoint(m, j, read);
     } else {
       shiftLimits(read.desc, m.offset);
-      if (auto* pu = std::get_if<PrismaticUniversalJointDesc>(&read.desc)) {
-        pu->axisPInFrameB = std::get<PrismaticUniversalJointDesc>(core_.joint(m.id)).axisPInFrameB;
-      }
-      if (auto* motor = std::get_if<MotorJointDesc>(&read.desc)) {
-        // Its axes are those of creation (the frames turn them since).
-        const auto& made = std::get<MotorJointDesc>(core_.joint(m.id));
-        for (int k = 0; k < 3; ++k)
-          motor->axes[k].axis = made.axes[k].axis;
-      }
       core_.updateJoint(m.id, read.desc);
       core_.setJointEnabled(m.id, true);
     }

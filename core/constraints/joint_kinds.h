@@ -32,6 +32,15 @@ BLOCKSTEP_JOINT_KIND(DoubleHingeJointDesc)
 
 #undef BLOCKSTEP_JOINT_KIND
 
+// On updateJoint, a kind whose rows read geometry fixed at creation (not
+// only the frames) keeps it from the joint as made: the caller's new
+// description brings limits, motors and softness, not geometry.
+template <class Desc>
+void keepCreationGeometry(Desc&, const Desc&) {}
+void keepCreationGeometry(MotorJointDesc& next, const MotorJointDesc& made);
+void keepCreationGeometry(PrismaticUniversalJointDesc& next,
+                          const PrismaticUniversalJointDesc& made);
+
 // Checks shared by every kind.
 void validateCommon(const JointCommon& c, const char* kind);
 void validateLimit(const Limit& l, const char* what);

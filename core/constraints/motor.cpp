@@ -35,6 +35,13 @@ void validateJoint(const MotorJointDesc& d) {
   }
 }
 
+void keepCreationGeometry(MotorJointDesc& next, const MotorJointDesc& made) {
+  for (int i = 0; i < 3; ++i)
+    next.axes[i].axis = made.axes[i].axis;
+  next.eulerRefA = made.eulerRefA;
+  next.eulerRefB = made.eulerRefB;
+}
+
 JointFrames setupJoint(MotorJointDesc& d, const Body& a, const Body& b) {
   for (int i = 0; i < d.axisCount; ++i)
     d.axes[i].axis.normalize();

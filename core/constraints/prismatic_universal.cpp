@@ -29,6 +29,11 @@ void validateJoint(const PrismaticUniversalJointDesc& d) {
   validateMotor(d.motor2, "prismatic-universal joint axis2");
 }
 
+void keepCreationGeometry(PrismaticUniversalJointDesc& next,
+                          const PrismaticUniversalJointDesc& made) {
+  next.axisPInFrameB = made.axisPInFrameB;
+}
+
 JointFrames setupJoint(PrismaticUniversalJointDesc& d, const Body& a, const Body& b) {
   const Mat3 R = frameFromAxes(d.axis1, d.axis2);
   d.axisPInFrameB = R.transpose() * d.axisP.normalized();

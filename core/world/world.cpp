@@ -292,7 +292,13 @@ void World::updateJoint(JointId id, const JointDesc& desc) {
     throw Error(jointName(id) + ": its bodies cannot change (destroy it and create another)");
   }
   std::visit([](const auto& d) { validateJoint(d); }, desc);
+  const JointDesc made = j.desc;
   j.desc = desc;
+  std::visit(
+      [&made](auto& updated) {
+        keepCreationGeometry(updated, std::get<std::decay_t<decltype(updated)>>(made));
+      },
+      j.desc);
 }
 
 void World::setJointEnabled(JointId id, bool enabled) {

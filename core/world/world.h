@@ -55,9 +55,10 @@ class World {
   JointId createJoint(const JointDesc& desc);
   void destroyJoint(JointId id);
   const JointDesc& joint(JointId id) const;
-  // Replaces limits, motors, softness and break thresholds. The bodies,
-  // kind, anchors and axes must stay those of creation (the joint's frames
-  // were fixed then); a change of them is refused.
+  // Replaces limits, motors, softness and break thresholds. The bodies and
+  // kind must stay those of creation (a change is refused); anchors and
+  // axes stay those of creation whatever desc says (the joint's frames, and
+  // any geometry its rows read, were fixed then).
   void updateJoint(JointId id, const JointDesc& desc);
   void setJointEnabled(JointId id, bool enabled);
   bool jointBroken(JointId id) const;

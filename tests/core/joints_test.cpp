@@ -220,6 +220,32 @@ TEST(Joints, MotorsReachTheirTargetSpeed) {
   EXPECT_NEAR(world.body(cart).linearVelocity.y(), 0.0, 1e-9);
 }
 
+// updateJoint changes motors and limits, never the geometry fixed at
+// creation: a motor axis fixed in B stays the one it was made with, even
+// when the update names another.
+TEST(Joints, UpdateKeepsTheGeometryOfCreation) {
+  World world;
+  world.setGravity(Vec3::Zero());
+  BodyDesc bd;
+  const BodyId b = world.createBody(bd);
+  MotorJointDesc motor;
+  motor.common.bodyB = b;
+  motor.axes[0].axis = Vec3::UnitZ();
+  motor.axes[0].frame = MotorJointDesc::Frame::B;
+  motor.axes[0].motor = Motor{2.0, 100.0};
+  const JointId j = world.createJoint(motor);
+  MotorJointDesc update = motor;
+  update.axes[0].axis = Vec3::UnitX();  // ignored: not a limit, motor or softness
+  update.axes[0].motor = Motor{3.0, 100.0};
+  world.updateJoint(j, update);
+  for (int i = 0; i < 10; ++i)
+    world.step(1.0 / 60.0);
+  const Vec3 w = world.body(b).angularVelocity;
+  EXPECT_NEAR(w.z(), 3.0, 1e-6);  // the new speed, about the creation axis
+  EXPECT_NEAR(w.x(), 0.0, 1e-9);
+  EXPECT_EQ(std::get<MotorJointDesc>(world.joint(j)).axes[0].axis, Vec3::UnitZ());
+}
+
 TEST(Joints, MotorForceIsCapped) {
   // A 1 kg m^2 wheel with at most 2 N m: 2 rad/s^2, so 1 s gives 2 rad/s.
   World world;
