@@ -12,9 +12,19 @@
 
 namespace blockstep {
 
+// What a joint carries from one (sub-)step to the next besides impulses,
+// for kinds whose rows depend on the path and not only on the pose: a gear
+// counts its wheels' whole turns. Also what it measured last.
+struct JointState {
+  double wheelAngle[2] = {0.0, 0.0};  // rad each wheel turned about its axis (A, B)
+  Vec3 contactPoint[2] = {Vec3::Zero(), Vec3::Zero()};  // world, on A's and B's rim
+  double contactRadius[2] = {0.0, 0.0};
+};
+
 struct Joint {
   JointDesc desc;
   JointFrames frames;
+  JointState state;
   // Accumulated impulse of each row slot at the end of the last solve
   // (warm starting), and summed over the sub-steps of the last step.
   std::array<double, kMaxJointSlots> warmImpulse{};

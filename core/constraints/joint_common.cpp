@@ -107,6 +107,7 @@ const char* jointKindName(const JointDesc& d) {
     const char* operator()(const DistanceJointDesc&) const { return "distance"; }
     const char* operator()(const PrismaticRotoideJointDesc&) const { return "prismatic-rotoide"; }
     const char* operator()(const DoubleHingeJointDesc&) const { return "double hinge"; }
+    const char* operator()(const GearJointDesc&) const { return "gear"; }
     const char* operator()(const PrismaticUniversalJointDesc&) const {
       return "prismatic-universal";
     }

@@ -199,10 +199,33 @@ struct MotorJointDesc {
   Vec3 eulerRefB = Vec3::UnitX(), eulerRefA = Vec3::UnitX();
 };
 
-using JointDesc =
-    std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc, UniversalJointDesc,
-                 ConeTwistJointDesc, SixDofJointDesc, DistanceJointDesc, MotorJointDesc,
-                 PrismaticRotoideJointDesc, PrismaticUniversalJointDesc, DoubleHingeJointDesc>;
+// Two wheels that turn together (ODE's transmission joint): spur gears on
+// parallel axes, bevel gears on intersecting axes, or sprockets joined by a
+// chain. One row keeps the arcs the wheels' rims travel at their contact
+// point equal (gears mesh: the wheels turn opposite ways; a chain: the
+// same way), counted from creation over whole turns. With backlash the
+// rims may part by up to that arc either way (the row then only pushes).
+// Each wheel's contact radius is fixed at creation: the distance from its
+// centre to the contact point (spur: on the line of centres, splitting it
+// as `ratio`; bevel: on the line where the wheels' planes meet; chain:
+// where the taut chain leaves the sprocket of the given radius).
+struct GearJointDesc {
+  enum class Kind : std::uint8_t { ParallelAxes, IntersectingAxes, Chain };
+  JointCommon common;
+  Kind kind = Kind::ParallelAxes;
+  Vec3 centreA = Vec3::Zero(), centreB = Vec3::Zero();  // wheel centres, world
+  // Wheel axes, world. B's is turned to point as A's does if they oppose.
+  // ParallelAxes and Chain need them parallel, IntersectingAxes not.
+  Vec3 axisA = Vec3::UnitZ(), axisB = Vec3::UnitZ();
+  double ratio = 1.0;                   // ParallelAxes: A's radius over B's (> 0)
+  double radiusA = 0.0, radiusB = 0.0;  // Chain: the sprockets' radii (> 0)
+  double backlash = 0.0;                // m of rim travel either way, >= 0
+};
+
+using JointDesc = std::variant<BallJointDesc, HingeJointDesc, SliderJointDesc, FixedJointDesc,
+                               UniversalJointDesc, ConeTwistJointDesc, SixDofJointDesc,
+                               DistanceJointDesc, MotorJointDesc, PrismaticRotoideJointDesc,
+                               PrismaticUniversalJointDesc, DoubleHingeJointDesc, GearJointDesc>;
 
 inline const JointCommon& common(const JointDesc& d) {
   return std::visit([](const auto& j) -> const JointCommon& { return j.common; }, d);

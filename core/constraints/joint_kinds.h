@@ -1,11 +1,13 @@
 // Per-kind joint behaviour, one overload set per JointDesc alternative:
 //   validateJoint  checks the description (throws Error),
 //   setupJoint     fixes the joint's frames in both bodies at creation,
-//   buildJointRows writes the joint's rows for the current pose.
+//   buildJointRows writes the joint's rows for the current pose (kinds
+//                  with a JointState also advance it; the others ignore it).
 // The solver dispatches to them once per joint per prepare (std::visit).
 #pragma once
 
 #include "core/body/body.h"
+#include "core/constraints/joint.h"
 #include "core/constraints/joint_desc.h"
 #include "core/constraints/parts/joint_pose.h"
 #include "core/constraints/parts/row_writer.h"
@@ -30,6 +32,14 @@ BLOCKSTEP_JOINT_KIND(PrismaticRotoideJointDesc)
 BLOCKSTEP_JOINT_KIND(PrismaticUniversalJointDesc)
 BLOCKSTEP_JOINT_KIND(DoubleHingeJointDesc)
 
+template <class Desc>
+void buildJointRows(const Desc& d, const JointPose& p, JointState&, RowWriter& out) {
+  buildJointRows(d, p, out);
+}
+void validateJoint(const GearJointDesc& d);
+JointFrames setupJoint(GearJointDesc& d, const Body& a, const Body& b);
+void buildJointRows(const GearJointDesc& d, const JointPose& p, JointState& state, RowWriter& out);
+
 #undef BLOCKSTEP_JOINT_KIND
 
 // On updateJoint, a kind whose rows read geometry fixed at creation (not
@@ -40,6 +50,7 @@ void keepCreationGeometry(Desc&, const Desc&) {}
 void keepCreationGeometry(MotorJointDesc& next, const MotorJointDesc& made);
 void keepCreationGeometry(PrismaticUniversalJointDesc& next,
                           const PrismaticUniversalJointDesc& made);
+void keepCreationGeometry(GearJointDesc& next, const GearJointDesc& made);
 
 // Checks shared by every kind.
 void validateCommon(const JointCommon& c, const char* kind);

@@ -273,7 +273,7 @@ void Solver::buildJointBlock(const StepInput& in, const SolverSettings& s, doubl
       JointPose::make(A.position, A.orientation, B.position, B.orientation, joint.frames);
   ConstraintRow* rows = &rows_[blk.firstRow];
   RowWriter out(rows);
-  std::visit([&](const auto& d) { buildJointRows(d, pose, out); }, joint.desc);
+  std::visit([&](const auto& d) { buildJointRows(d, pose, joint.state, out); }, joint.desc);
   out.finish();
   blk.bodyA = solverIndex(c.bodyA);
   blk.bodyB = solverIndex(c.bodyB);

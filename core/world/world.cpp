@@ -323,6 +323,10 @@ JointFeedback World::jointFeedback(JointId id) const {
   return solver_.feedback(j, lastStep_);
 }
 
+const JointState& World::jointState(JointId id) const {
+  return liveJoint(id).state;
+}
+
 JointError World::jointError(JointId id) const {
   const Joint& j = liveJoint(id);
   const JointCommon& c = common(j.desc);
@@ -332,7 +336,8 @@ JointError World::jointError(JointId id) const {
       JointPose::make(a.position, a.orientation, b.position, b.orientation, j.frames);
   std::array<ConstraintRow, kMaxJointSlots> rows;
   RowWriter out(rows.data());
-  std::visit([&](const auto& d) { buildJointRows(d, pose, out); }, j.desc);
+  JointState state = j.state;  // measuring must not advance it
+  std::visit([&](const auto& d) { buildJointRows(d, pose, state, out); }, j.desc);
   out.finish();
   const int ne = out.equalityCount();
   double linSq = 0.0, angSq = 0.0, linLimit = 0.0, angLimit = 0.0;

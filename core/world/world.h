@@ -68,6 +68,9 @@ class World {
   JointFeedback jointFeedback(JointId id) const;
   // How far the joint is from satisfied in the current poses.
   JointError jointError(JointId id) const;
+  // What the joint carries between steps and measured last (a gear's
+  // wheel angles and contact points); zeros for kinds without such state.
+  const JointState& jointState(JointId id) const;
 
   // Shapes and contacts. Shapes on kWorldBody are static world geometry
   // (their local pose is their world pose). Contacts found by collision,
