@@ -245,6 +245,18 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal)) {
   return 0;
 }
 
+const JointState* steppedJointState(dJointID j) {
+  Registry& registry = Registry::instance();
+  std::lock_guard lock(registry.mutex());
+  const ode::JointRecord* joint = registry.joint(j);
+  if (!joint) return nullptr;
+  const WorldState* state = worldStates().find(joint->world);
+  ode::WorldRecord* world = registry.world(joint->world);
+  if (!state || state->stepper != dBlockStepperBlockstep || !world || !world->bridge)
+    return nullptr;
+  return world->bridge->jointState(j);
+}
+
 void forgetWorld(dWorldID w) {
   worldStates().erase(w);
 }

@@ -161,6 +161,14 @@ void dJointAttach(dJointID j, dBodyID b1, dBodyID b2) {
         static_cast<void*>(j), static_cast<void*>(b1), static_cast<void*>(b2));
     return;
   }
+  // ODE aborts on hinge2 and transmission joints given a single body.
+  const int type = j ? dJointGetType(j) : 0;
+  if ((type == dJointTypeHinge2 || type == dJointTypeTransmission) && (!b1 || !b2) && (b1 || b2)) {
+    say("dJointAttach(%p, %p, %p): a %s joint needs two bodies; call ignored",
+        static_cast<void*>(j), static_cast<void*>(b1), static_cast<void*>(b2),
+        type == dJointTypeHinge2 ? "hinge2" : "transmission");
+    return;
+  }
   real_dJointAttach(j, b1, b2);
 }
 
@@ -239,6 +247,54 @@ void dJointSetHinge2Axes(dJointID j, const dReal* axis1, const dReal* axis2) {
   if (axis1 && !goodAxis("dJointSetHinge2Axes (axis1)", axis1[0], axis1[1], axis1[2])) return;
   if (axis2 && !goodAxis("dJointSetHinge2Axes (axis2)", axis2[0], axis2[1], axis2[2])) return;
   real_dJointSetHinge2Axes(j, axis1, axis2);
+}
+
+// Transmission state ODE computes while stepping (wheel angles, contact
+// points, radii): from the core when blockstep stepped the world. ODE's
+// wheel 1 (body1) is the core's B (index 1); ODE's angle is that of the
+// contact point seen from the wheel, the opposite of the wheel's turn.
+// A chain's radii are the program's own settings (the adapter reads them
+// through these getters): those stay ODE's.
+dReal dJointGetTransmissionAngle1(dJointID j) {
+  BLOCKSTEP_REAL(dJointGetTransmissionAngle1);
+  const JointState* s = steppedJointState(j);
+  return s ? dReal(-s->wheelAngle[1]) : real_dJointGetTransmissionAngle1(j);
+}
+
+dReal dJointGetTransmissionAngle2(dJointID j) {
+  BLOCKSTEP_REAL(dJointGetTransmissionAngle2);
+  const JointState* s = steppedJointState(j);
+  return s ? dReal(-s->wheelAngle[0]) : real_dJointGetTransmissionAngle2(j);
+}
+
+dReal dJointGetTransmissionRadius1(dJointID j) {
+  BLOCKSTEP_REAL(dJointGetTransmissionRadius1);
+  const JointState* s =
+      dJointGetTransmissionMode(j) == dTransmissionChainDrive ? nullptr : steppedJointState(j);
+  return s ? dReal(s->contactRadius[1]) : real_dJointGetTransmissionRadius1(j);
+}
+
+dReal dJointGetTransmissionRadius2(dJointID j) {
+  BLOCKSTEP_REAL(dJointGetTransmissionRadius2);
+  const JointState* s =
+      dJointGetTransmissionMode(j) == dTransmissionChainDrive ? nullptr : steppedJointState(j);
+  return s ? dReal(s->contactRadius[0]) : real_dJointGetTransmissionRadius2(j);
+}
+
+void dJointGetTransmissionContactPoint1(dJointID j, dVector3 result) {
+  BLOCKSTEP_REAL(dJointGetTransmissionContactPoint1);
+  const JointState* s = steppedJointState(j);
+  if (!s) return real_dJointGetTransmissionContactPoint1(j, result);
+  for (int k = 0; k < 3; ++k)
+    result[k] = s->contactPoint[1][k];
+}
+
+void dJointGetTransmissionContactPoint2(dJointID j, dVector3 result) {
+  BLOCKSTEP_REAL(dJointGetTransmissionContactPoint2);
+  const JointState* s = steppedJointState(j);
+  if (!s) return real_dJointGetTransmissionContactPoint2(j, result);
+  for (int k = 0; k < 3; ++k)
+    result[k] = s->contactPoint[0][k];
 }
 
 }  // extern "C"

@@ -10,7 +10,11 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "core/constraints/joint.h"
+
 namespace blockstep::plugin {
+
+using blockstep::JointState;
 
 // The next definition of `name` after this library: ODE's own.
 template <class F>
@@ -40,6 +44,10 @@ bool quiet();
 // Steps w with blockstep; for content blockstep cannot model, with
 // `fallback` (ODE's own stepper). Returns ODE's convention: 1 stepped, 0 not.
 int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal));
+
+// The core joint state of j when blockstep stepped its world last, else
+// nullptr (ODE's own joint state is then the current one).
+const JointState* steppedJointState(dJointID j);
 
 // Prints "blockstep: <text>" on stderr unless BLOCKSTEP_QUIET is set.
 void say(const char* format, ...) __attribute__((format(printf, 1, 2)));

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/world/error.h"
+
 namespace blockstep::ode {
 namespace {
 
@@ -421,6 +423,58 @@ void readDBall(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorl
   out.geometry.add(vec(a2), true, 2);
 }
 
+// Transmission: the core gear joint. ODE's wheel 1 (body1) is the core's
+// B, so the core ratio (A's radius over B's) is 1 / ODE's and the radii
+// swap. ODE keeps its own ERP and CFM on the joint (from the world's when
+// made) and counts the angles from its first step after a setter, as the
+// core counts them from when the joint is made (which a setter causes).
+void readTransmission(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
+  if (b1 == kWorldBody || b2 == kWorldBody) {
+    throw Error(
+        "ODE transmission joint attached to one body: it needs two (ODE's own stepper would "
+        "crash on it)");
+  }
+  dVector3 a1, a2, axis1, axis2;
+  dJointGetTransmissionAnchor1(j, a1);
+  dJointGetTransmissionAnchor2(j, a2);
+  dJointGetTransmissionAxis1(j, axis1);
+  dJointGetTransmissionAxis2(j, axis2);
+  GearJointDesc d;
+  d.common = commonOf(
+      b1, b2,
+      w.of(dJointGetTransmissionParam(j, dParamERP), dJointGetTransmissionParam(j, dParamCFM)));
+  switch (dJointGetTransmissionMode(j)) {
+    case dTransmissionParallelAxes:
+      d.kind = GearJointDesc::Kind::ParallelAxes;
+      break;
+    case dTransmissionIntersectingAxes:
+      d.kind = GearJointDesc::Kind::IntersectingAxes;
+      break;
+    case dTransmissionChainDrive:
+      d.kind = GearJointDesc::Kind::Chain;
+      break;
+    default:
+      out.unsupported = "unknown transmission mode";
+      return;
+  }
+  d.centreA = vec(a2);
+  d.centreB = vec(a1);
+  d.axisA = vec(axis2);
+  d.axisB = vec(axis1);
+  const double ratio = dJointGetTransmissionRatio(j);
+  d.ratio = ratio > 0.0 ? 1.0 / ratio : ratio;  // the core refuses ratio <= 0
+  if (d.kind == GearJointDesc::Kind::Chain) {   // otherwise ODE derives them when stepping
+    d.radiusA = dJointGetTransmissionRadius2(j);
+    d.radiusB = dJointGetTransmissionRadius1(j);
+  }
+  d.backlash = dJointGetTransmissionBacklash(j);
+  out.desc = d;
+  out.geometry.add(vec(a1), true, 1);
+  out.geometry.add(vec(a2), true, 2);
+  out.geometry.add(vec(axis1), false, 1);
+  out.geometry.add(vec(axis2), false, 2);
+}
+
 void shift(Limit& l, double offset) {
   if (!l.enabled) return;
   l.lo -= offset;
@@ -519,6 +573,9 @@ void readJoint(dJointID j, BodyId body1, BodyId body2, const JointWorldParams& w
       break;
     case dJointTypeDHinge:
       readDHinge(j, body1, body2, out, world);
+      break;
+    case dJointTypeTransmission:
+      readTransmission(j, body1, body2, out, world);
       break;
     case dJointTypeNull:
       out.hasRows = false;

@@ -381,6 +381,11 @@ bool WorldBridge::sameGeometry(const MappedJoint& m, const JointGeometry& now) c
   return true;
 }
 
+const JointState* WorldBridge::jointState(dJointID joint) const {
+  const MappedJoint* m = joints_.find(joint);
+  return m && m->id >= 0 ? &core_.jointState(m->id) : nullptr;
+}
+
 void WorldBridge::makeJoint(MappedJoint& m, dJointID j, JointRead& read) {
   m.type = dJointGetType(j);
   m.body1 = dJointGetBody(j, 0);

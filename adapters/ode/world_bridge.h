@@ -66,6 +66,10 @@ class WorldBridge {
   void forgetBody(dBodyID body);
   void forgetJoint(dJointID joint);
 
+  // The core joint's carried state (a transmission's wheel angles and
+  // contact points), or nullptr when the joint has no core joint yet.
+  const JointState* jointState(dJointID joint) const;
+
   BridgeSettings& settings() { return settings_; }
   const StepStats& stats() const { return core_.lastStepStats(); }
   const World& core() const { return core_; }

@@ -1,14 +1,21 @@
 // Gear joint: where the wheels touch (the mesh geometry of ODE's
 // transmission joint, joints/transmission.cpp), how far each has turned
-// (counted over whole turns in the JointState), and one row, as in ODE:
-// the velocities of the two rims at their contact points along the rims'
-// direction of travel must be equal,
-//   Cdot = tA . (vA + wA x (cA - xA)) - tB . (vB + wB x (cB - xB)),
-// with C the difference of the arcs the rims have travelled. Each arc's
-// sign is taken from that same geometry (the rim velocity of a wheel
-// turning forward, along its tangent), so Cdot = J v holds in every mode;
-// ODE fixes the signs per mode, which for some bevel arrangements makes
-// its position correction push the wheels apart.
+// (counted over whole turns in the JointState), and one row: the arcs the
+// two rims travel at their contact must stay equal,
+//   C    = sA rA thetaA - sB rB thetaB,
+//   Cdot = sA rA (wA . nA) - sB rB (wB . nB),
+// with sX = +-1 the direction a rim turning forward moves along the mesh
+// tangent at its contact point, taken from the geometry, so Cdot = J v in
+// every mode (ODE fixes the signs per mode, which for some bevel
+// arrangements turns its position correction against the motion).
+//
+// The row is about the wheel axes only. ODE's row pushes at the contact
+// points (linear terms too), so the axles also feel the mesh force; coupled
+// through those terms to the wheels' hinge rows, a pendulum-driven chain
+// diverged within ten steps at the sub-stepped solver's row stiffness. On
+// wheels that turn about their axes (mounted on hinges, as gears are) the
+// motion is ODE's; the hinges then carry no mesh force, and a transmission's
+// feedback is a pure torque about each axis.
 #include <algorithm>
 #include <cmath>
 
@@ -25,7 +32,7 @@ constexpr double kTiny = 1e-9;
 struct Mesh {
   Vec3 contact[2];  // world contact point on each rim
   Vec3 radius[2];   // contact point - wheel centre
-  Vec3 tangent[2];  // unit direction the row pushes each rim along
+  Vec3 tangent[2];  // unit direction of the mesh at each contact
 };
 
 Mesh meshOf(const GearJointDesc& d, const Vec3 centre[2], const Vec3 axis[2]) {
@@ -160,14 +167,15 @@ void buildJointRows(const GearJointDesc& d, const JointPose& p, JointState& stat
 
   // Each wheel's turn: the contact direction seen from the wheel, which
   // turns the other way, continued from the last (sub-)step's value.
-  double arc[2];
+  double arc[2], lever[2];
   for (int i = 0; i < 2; ++i) {
     const Vec3 seen = frame[i].conjugate() * m.radius[i];
     const double turn = -std::atan2(seen.y(), seen.x());
     double& angle = state.wheelAngle[i];
     angle += std::remainder(turn - angle, 2.0 * kPi);
     const double forward = m.tangent[i].dot(axis[i].cross(m.radius[i])) >= 0.0 ? 1.0 : -1.0;
-    arc[i] = forward * m.radius[i].norm() * angle;
+    lever[i] = forward * m.radius[i].norm();
+    arc[i] = lever[i] * angle;
   }
   const double C = arc[0] - arc[1];
 
@@ -178,7 +186,6 @@ void buildJointRows(const GearJointDesc& d, const JointPose& p, JointState& stat
     for (int i = 0; i < 2; ++i) {
       m.radius[i] -= 2.0 * normal.dot(m.radius[i]) * normal;
       m.contact[i] = centre[i] + m.radius[i];
-      m.tangent[i] = m.radius[i].cross(axis[i]).normalized();
     }
   }
   for (int i = 0; i < 2; ++i) {
@@ -187,12 +194,9 @@ void buildJointRows(const GearJointDesc& d, const JointPose& p, JointState& stat
   }
 
   ConstraintRow rate;
-  const Vec3 xA = p.pA - p.rA, xB = p.pB - p.rB;
-  rate.linA = m.tangent[0];
-  rate.angA = (m.contact[0] - xA).cross(m.tangent[0]);
-  rate.linB = -m.tangent[1];
-  rate.angB = -(m.contact[1] - xB).cross(m.tangent[1]);
-  rate.angular = false;
+  rate.angA = lever[0] * axis[0];
+  rate.angB = -lever[1] * axis[1];
+  rate.angular = false;  // its impulse is a force at the rims
   // Backlash: free play of +-backlash, then a one-sided push (ODE's
   // unilateral row); none: one equality row.
   const Stops play{true, -d.backlash, d.backlash, 0.0};

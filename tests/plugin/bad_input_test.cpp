@@ -169,13 +169,14 @@ TEST(OdeBadInput, WorldDestroyedWithGroupedJointsIsForgotten) {
 // ODE's quickstep; the stats say so.
 TEST(OdeBadInput, UnsupportedJointFallsBackToOdeOnce) {
   Pendulum p;
-  dJointID motor = dJointCreateTransmission(p.s.world, 0);  // gears: no mapping yet
+  // Plane2D between two bodies: ODE constrains body1 alone; no mapping.
+  dJointID motor = dJointCreatePlane2D(p.s.world, 0);
   dJointAttach(motor, p.bob, p.s.box(2.0, 0.0, 1.0));
   testing::internal::CaptureStderr();
   for (int k = 0; k < 5; ++k)
     ASSERT_EQ(dWorldBlockStep(p.s.world, kStep), 1);
   const std::string err = testing::internal::GetCapturedStderr();
-  const std::string said = "ODE transmission joint";
+  const std::string said = "ODE plane2d joint";
   EXPECT_NE(err.find(said), std::string::npos) << err;
   EXPECT_EQ(err.find(said, err.find(said) + 1), std::string::npos) << "said more than once";
   EXPECT_NE(err.find("stepped by ODE"), std::string::npos) << err;
@@ -187,6 +188,19 @@ TEST(OdeBadInput, UnsupportedJointFallsBackToOdeOnce) {
   ASSERT_EQ(dWorldBlockStep(p.s.world, kStep), 1);
   ASSERT_EQ(dWorldGetBlockStepStats(p.s.world, &stats), 1);
   EXPECT_EQ(stats.stepper, dBlockStepperBlockstep);
+}
+
+// A transmission needs two bodies (ODE aborts on attaching one): the
+// attach is refused with a message, and the world steps on.
+TEST(OdeBadInput, TransmissionOnOneBodyIsRefused) {
+  Pendulum p;
+  dJointID gear = dJointCreateTransmission(p.s.world, 0);
+  testing::internal::CaptureStderr();
+  dJointAttach(gear, p.bob, nullptr);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("a transmission joint needs two bodies"), std::string::npos) << err;
+  EXPECT_EQ(dJointGetBody(gear, 0), nullptr);
+  p.expectSwingsOnItsHinge();
 }
 
 }  // namespace

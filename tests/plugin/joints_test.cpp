@@ -610,6 +610,105 @@ TEST(OdeJoints, NullJointLeavesAProjectile) {
 }
 
 // dJointFeedback: a 2 kg mass hanging at rest on a hinge feels m g up.
+// Transmission: a pendulum (body1, its wheel on the hinge axis) drives a
+// second wheel on its own hinge through the joint in each ODE mode. The
+// wheels' hinge angles follow dWorldStep's, and so do the transmission
+// angles ODE's getters report (blockstep answers them from its own state).
+struct GearScene {
+  int mode;
+  double backlash = 0.0;
+  double bevelHeight = -0.3;  // of the horizontal bevel wheel's centre
+};
+
+void buildGears(OdeScene& s, const GearScene& g) {
+  // Pendulum wheel: hinge at (0.4, 0, 0) about y, bob 0.3 m below. The
+  // scene sits at height 0: ODE reflects a chain's contact points across a
+  // plane through the origin, right only when the line of centres lies in
+  // it (elsewhere ODE's contact points land far from the sprockets).
+  dBodyID pendulum = s.box(0.4, 0.0, -0.3);
+  dBodySetAngularVel(pendulum, 0.0, 2.0, 0.0);
+  dBodySetLinearVel(pendulum, 0.6, 0.0, 0.0);
+  dJointID h1 = s.add(dJointCreateHinge(s.world, 0), pendulum, nullptr);
+  dJointSetHingeAnchor(h1, 0.4, 0.0, 0.0);
+  dJointSetHingeAxis(h1, 0.0, 1.0, 0.0);
+  // Driven wheel: a heavier box turning about its centre; for bevel gears
+  // a horizontal wheel whose rim meets the pendulum wheel's at
+  // (0.4, 0, bevelHeight).
+  const bool bevel = g.mode == dTransmissionIntersectingAxes;
+  const double c[3] = {bevel ? 0.4 : 0.0, bevel ? 0.3 : 0.0, bevel ? g.bevelHeight : 0.0};
+  dBodyID wheel = s.box(c[0], c[1], c[2], 3.0, 0.3);
+  dJointID h2 = s.add(dJointCreateHinge(s.world, 0), wheel, nullptr);
+  dJointSetHingeAnchor(h2, c[0], c[1], c[2]);
+  dJointSetHingeAxis(h2, 0.0, bevel ? 0.0 : 1.0, bevel ? 1.0 : 0.0);
+  dJointID t = s.add(dJointCreateTransmission(s.world, 0), pendulum, wheel);
+  dJointSetTransmissionMode(t, g.mode);
+  dJointSetTransmissionAnchor1(t, 0.4, 0.0, 0.0);
+  dJointSetTransmissionAnchor2(t, c[0], c[1], c[2]);
+  if (bevel) {
+    dJointSetTransmissionAxis1(t, 0.0, 1.0, 0.0);
+    dJointSetTransmissionAxis2(t, 0.0, 0.0, 1.0);
+  } else {
+    dJointSetTransmissionAxis(t, 0.0, 1.0, 0.0);
+  }
+  if (g.mode == dTransmissionParallelAxes) dJointSetTransmissionRatio(t, 1.0 / 3.0);
+  if (g.mode == dTransmissionChainDrive) {
+    dJointSetTransmissionRadius1(t, 0.1);
+    dJointSetTransmissionRadius2(t, 0.2);
+  }
+  dJointSetTransmissionBacklash(t, g.backlash);
+}
+
+TwinRun runGears(const GearScene& g) {
+  auto probe = [](OdeScene& s) {
+    return std::vector<double>{dJointGetHingeAngle(s.joints[0]), dJointGetHingeAngle(s.joints[1]),
+                               dJointGetTransmissionAngle1(s.joints[2]),
+                               dJointGetTransmissionAngle2(s.joints[2])};
+  };
+  return runTwin([&g](OdeScene& s) { buildGears(s, g); }, probe, kSeconds, kStep, 20, highEffort);
+}
+
+TEST(OdeJoints, TransmissionGearsChainAndBevel) {
+  const struct {
+    const char* name;
+    GearScene scene;
+    double tolerance;  // rad, on the hinge angles
+  } cases[] = {{"spur gears, ratio 1/3", {dTransmissionParallelAxes}, 0.002},
+               {"chain, radii 0.1 and 0.2", {dTransmissionChainDrive}, 0.002},
+               {"bevel gears at right angles", {dTransmissionIntersectingAxes}, 0.002},
+               {"spur gears with 2 cm backlash", {dTransmissionParallelAxes, 0.02}, 0.02}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.name);
+    std::printf("%s\n", c.name);
+    const TwinRun run = runGears(c.scene);
+    run.report("pendulum angle (rad)", 0);
+    run.report("wheel angle (rad)", 1);
+    run.report("transmission angle 1 (rad)", 2);
+    run.report("transmission angle 2 (rad)", 3);
+    EXPECT_GT(TwinRun::maxOf(run.direct, 1), 0.1) << "the wheel must turn";
+    EXPECT_LT(run.maxDifference(0), c.tolerance);
+    EXPECT_LT(run.maxDifference(1), c.tolerance);
+    // ODE reports the angles it measured at the start of its last step,
+    // blockstep those of its last sub-step: they differ by up to w h.
+    EXPECT_LT(run.maxDifference(2), 0.01);
+    EXPECT_LT(run.maxDifference(3), 0.01);
+  }
+}
+
+// With the bevel wheel above the pendulum's axis ODE's position correction
+// for intersecting axes acts against the motion (its arc signs are fixed,
+// not taken from the geometry): dWorldStep's pendulum climbs from 0.26 rad
+// to 1.4 rad. Blockstep's stays within its initial swing.
+TEST(OdeJoints, TransmissionBevelAboveKeepsItsEnergy) {
+  GearScene above{dTransmissionIntersectingAxes};
+  above.bevelHeight = 0.3;
+  const TwinRun run = runGears(above);
+  run.reportError("pendulum swing (rad)", 0);
+  EXPECT_LT(TwinRun::maxOf(run.block, 0), 0.3);
+  EXPECT_GT(TwinRun::maxOf(run.block, 0), 0.2);
+  EXPECT_NEAR(TwinRun::maxOf(run.block, 1), TwinRun::maxOf(run.block, 0), 0.01)
+      << "equal radii: the wheel turns as far as the pendulum";
+}
+
 TEST(OdeJoints, HingeFeedbackIsWeight) {
   OdeScene s;
   dBodyID bob = s.box(0.0, 0.0, 0.5, 2.0);
