@@ -249,6 +249,17 @@ void dJointSetHinge2Axes(dJointID j, const dReal* axis1, const dReal* axis2) {
   real_dJointSetHinge2Axes(j, axis1, axis2);
 }
 
+// In Euler mode ODE computes the AMotor's angles while stepping: from the
+// core when blockstep stepped the world. User mode angles are the
+// program's own.
+dReal dJointGetAMotorAngle(dJointID j, int anum) {
+  BLOCKSTEP_REAL(dJointGetAMotorAngle);
+  const JointState* s = dJointGetAMotorMode(j) == dAMotorEuler && anum >= 0 && anum < 3
+                            ? steppedJointState(j)
+                            : nullptr;
+  return s ? dReal(s->angle[anum]) : real_dJointGetAMotorAngle(j, anum);
+}
+
 // Transmission state ODE computes while stepping (wheel angles, contact
 // points, radii): from the core when blockstep stepped the world. ODE's
 // wheel 1 (body1) is the core's B (index 1); ODE's angle is that of the
@@ -258,13 +269,13 @@ void dJointSetHinge2Axes(dJointID j, const dReal* axis1, const dReal* axis2) {
 dReal dJointGetTransmissionAngle1(dJointID j) {
   BLOCKSTEP_REAL(dJointGetTransmissionAngle1);
   const JointState* s = steppedJointState(j);
-  return s ? dReal(-s->wheelAngle[1]) : real_dJointGetTransmissionAngle1(j);
+  return s ? dReal(-s->angle[1]) : real_dJointGetTransmissionAngle1(j);
 }
 
 dReal dJointGetTransmissionAngle2(dJointID j) {
   BLOCKSTEP_REAL(dJointGetTransmissionAngle2);
   const JointState* s = steppedJointState(j);
-  return s ? dReal(-s->wheelAngle[0]) : real_dJointGetTransmissionAngle2(j);
+  return s ? dReal(-s->angle[0]) : real_dJointGetTransmissionAngle2(j);
 }
 
 dReal dJointGetTransmissionRadius1(dJointID j) {

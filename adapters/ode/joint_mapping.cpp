@@ -214,11 +214,8 @@ MotorJointDesc::Frame motorFrame(int rel) {
 // when they were set (the registry records them as ODE keeps them).
 void readAMotorEuler(dJointID j, BodyId b1, BodyId b2, const JointSetOnly& set, JointRead& out,
                      const JointWorldParams& w) {
+  // Attached as (0, body), ODE keeps these public roles (body1 the world).
   const dBodyID body1 = dJointGetBody(j, 0), body2 = dJointGetBody(j, 1);
-  if (!body1) {
-    out.unsupported = "Euler mode (dAMotorEuler) attached with body1 = 0";
-    return;
-  }
   auto rotate = [](dBodyID b, const Vec3& v) -> Vec3 {
     if (!b) return v;
     const dReal* q = dBodyGetQuaternion(b);

@@ -3,6 +3,7 @@
 #include "adapters/ode/world_bridge.h"
 
 #include <cmath>
+#include <utility>
 
 namespace blockstep::ode {
 
@@ -119,13 +120,24 @@ void Registry::plane2dParamSet(dJointID joint, int motor, int parameter, double 
 
 namespace {
 
-// v = R^T w for an ODE body's rotation (its frame from the world's).
+// v = R^T w for an ODE body's rotation (its frame from the world's); the
+// world (b = 0) leaves it as it is.
 void toBody(dBodyID b, const double w[3], double v[3]) {
+  if (!b) {
+    for (int i = 0; i < 3; ++i)
+      v[i] = w[i];
+    return;
+  }
   const dReal* R = dBodyGetRotation(b);
   for (int i = 0; i < 3; ++i)
     v[i] = R[i] * w[0] + R[4 + i] * w[1] + R[8 + i] * w[2];
 }
 void toWorld(dBodyID b, const double v[3], double w[3]) {
+  if (!b) {
+    for (int i = 0; i < 3; ++i)
+      w[i] = v[i];
+    return;
+  }
   const dReal* R = dBodyGetRotation(b);
   for (int i = 0; i < 3; ++i)
     w[i] = R[4 * i] * v[0] + R[4 * i + 1] * v[1] + R[4 * i + 2] * v[2];
@@ -162,24 +174,19 @@ void Registry::amotorModeSet(dJointID joint) {
   if (JointRecord* r = joints_.find(joint)) updateEulerReferences(joint, *r);
 }
 
-// ODE's setEulerReferenceVectors (amotor.cpp), for a joint whose body1 is
-// set: reference2 = axis 0 (fixed in body1) in body2's frame, reference1
-// = axis 2 (fixed in body2, or the world) in body1's frame.
+// ODE's setEulerReferenceVectors (amotor.cpp): reference2 = axis 0 (fixed
+// in body1) in body2's frame, reference1 = axis 2 (fixed in body2) in
+// body1's frame, the world standing in for a missing body. Attached as
+// (0, body), ODE swaps its internal order and the Euler code swaps back,
+// so these public roles hold either way.
 void Registry::updateEulerReferences(dJointID joint, JointRecord& r) {
   if (dJointGetAMotorMode(joint) != dAMotorEuler) return;
   const dBodyID b1 = dJointGetBody(joint, 0), b2 = dJointGetBody(joint, 1);
-  if (!b1) return;  // reversed: refused when stepped
+  if (!b1 && !b2) return;
   double w[3];
   toWorld(b1, r.amotorAxis[0], w);
-  if (b2) {
-    toBody(b2, w, r.eulerRef2);
-    toWorld(b2, r.amotorAxis[2], w);
-  } else {
-    for (int i = 0; i < 3; ++i)
-      r.eulerRef2[i] = w[i];
-    for (int i = 0; i < 3; ++i)
-      w[i] = r.amotorAxis[2][i];
-  }
+  toBody(b2, w, r.eulerRef2);
+  toWorld(b2, r.amotorAxis[2], w);
   toBody(b1, w, r.eulerRef1);
 }
 

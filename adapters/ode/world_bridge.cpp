@@ -473,16 +473,21 @@ void WorldBridge::writeFeedback(const WorldRecord& record) {
     const MappedJoint* m = joints_.find(j);
     JointFeedback fb;
     if (m && m->id >= 0) fb = core_.jointFeedback(m->id);
-    // As ODE does, f2/t2 are written only when there is a second body.
-    const bool reversed = dJointGetBody(j, 0) == nullptr;
-    const bool twoBodies = dJointGetBody(j, 0) && dJointGetBody(j, 1);
-    const Vec3 f1 = reversed ? fb.forceA : fb.forceB, t1 = reversed ? fb.torqueA : fb.torqueB;
+    // ODE's f1/t1 are on its internal first body (body2 when attached as
+    // (0, body)); f2/t2, written only when there is a second body, on the
+    // other. Which core side each is depends on the kind's mapping.
+    const dBodyID b1 = dJointGetBody(j, 0), b2 = dJointGetBody(j, 1);
+    const dBodyID first = b1 ? b1 : b2;
+    const bool firstIsB =
+        m && m->id >= 0 && first && common(core_.joint(m->id)).bodyB == coreBody(first);
+    const Vec3 f1 = firstIsB ? fb.forceB : fb.forceA, t1 = firstIsB ? fb.torqueB : fb.torqueA;
+    const Vec3 f2 = firstIsB ? fb.forceA : fb.forceB, t2 = firstIsB ? fb.torqueA : fb.torqueB;
     for (int k = 0; k < 3; ++k) {
       out->f1[k] = f1[k];
       out->t1[k] = t1[k];
-      if (twoBodies) {
-        out->f2[k] = fb.forceA[k];
-        out->t2[k] = fb.torqueA[k];
+      if (b1 && b2) {
+        out->f2[k] = f2[k];
+        out->t2[k] = t2[k];
       }
     }
   }

@@ -171,7 +171,7 @@ void buildJointRows(const GearJointDesc& d, const JointPose& p, JointState& stat
   for (int i = 0; i < 2; ++i) {
     const Vec3 seen = frame[i].conjugate() * m.radius[i];
     const double turn = -std::atan2(seen.y(), seen.x());
-    double& angle = state.wheelAngle[i];
+    double& angle = state.angle[i];
     angle += std::remainder(turn - angle, 2.0 * kPi);
     const double forward = m.tangent[i].dot(axis[i].cross(m.radius[i])) >= 0.0 ? 1.0 : -1.0;
     lever[i] = forward * m.radius[i].norm();

@@ -13,10 +13,12 @@
 namespace blockstep {
 
 // What a joint carries from one (sub-)step to the next besides impulses,
-// for kinds whose rows depend on the path and not only on the pose: a gear
-// counts its wheels' whole turns. Also what it measured last.
+// and what it measured at its last sub-step, for kinds whose coordinates
+// are computed in the solver: a gear's wheel angles (A's, B's; it counts
+// their whole turns from one sub-step to the next) and contact points, an
+// Euler motor joint's three angles.
 struct JointState {
-  double wheelAngle[2] = {0.0, 0.0};  // rad each wheel turned about its axis (A, B)
+  double angle[3] = {0.0, 0.0, 0.0};                    // rad
   Vec3 contactPoint[2] = {Vec3::Zero(), Vec3::Zero()};  // world, on A's and B's rim
   double contactRadius[2] = {0.0, 0.0};
 };

@@ -39,6 +39,7 @@ void buildJointRows(const Desc& d, const JointPose& p, JointState&, RowWriter& o
 void validateJoint(const GearJointDesc& d);
 JointFrames setupJoint(GearJointDesc& d, const Body& a, const Body& b);
 void buildJointRows(const GearJointDesc& d, const JointPose& p, JointState& state, RowWriter& out);
+void buildJointRows(const MotorJointDesc& d, const JointPose& p, JointState& state, RowWriter& out);
 
 #undef BLOCKSTEP_JOINT_KIND
 

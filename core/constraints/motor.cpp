@@ -52,7 +52,8 @@ JointFrames setupJoint(MotorJointDesc& d, const Body& a, const Body& b) {
 }
 
 // ODE's Euler angles (amotor.cpp computeEulerAngles) and their rows.
-void buildEulerRows(const MotorJointDesc& d, const JointPose& p, RowWriter& out) {
+void buildEulerRows(const MotorJointDesc& d, const JointPose& p, JointState& state,
+                    RowWriter& out) {
   const Vec3 ax0 = p.frameB * d.axes[0].axis;
   const Vec3 ax2 = p.frameA * d.axes[2].axis;
   const Vec3 refB = p.frameB * d.eulerRefB, refA = p.frameA * d.eulerRefA;
@@ -61,6 +62,8 @@ void buildEulerRows(const MotorJointDesc& d, const JointPose& p, RowWriter& out)
                            -std::atan2(ax2.dot(ax0), ax2.dot(ax0.cross(ax1))),
                            -std::atan2(refA.dot(ax1), refA.dot(ax1.cross(ax2)))};
   const Vec3 rowAxis[3] = {ax1.cross(ax2), ax1, ax0.cross(ax1)};
+  for (int i = 0; i < 3; ++i)
+    state.angle[i] = angle[i];
   ConstraintRow rate;
   for (int i = 0; i < 3; ++i) {
     angularAxisRow(rowAxis[i], 0.0, rate);
@@ -68,9 +71,18 @@ void buildEulerRows(const MotorJointDesc& d, const JointPose& p, RowWriter& out)
   }
 }
 
+void buildJointRows(const MotorJointDesc& d, const JointPose& p, JointState& state,
+                    RowWriter& out) {
+  if (d.euler) return buildEulerRows(d, p, state, out);
+  buildJointRows(d, p, out);
+}
+
 void buildJointRows(const MotorJointDesc& d, const JointPose& p, RowWriter& out) {
   using Frame = MotorJointDesc::Frame;
-  if (d.euler) return buildEulerRows(d, p, out);
+  if (d.euler) {
+    JointState unused;
+    return buildEulerRows(d, p, unused, out);
+  }
   ConstraintRow rate;
   for (int i = 0; i < d.axisCount; ++i) {
     const MotorJointDesc::Axis& ax = d.axes[i];

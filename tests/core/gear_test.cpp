@@ -69,8 +69,8 @@ TEST(Gears, SpurGearsTurnOppositeAtTheirRatioOverManyTurns) {
   EXPECT_NEAR(w.world.body(w.a).angularVelocity.z(), 2.0, 1e-4);
   EXPECT_NEAR(w.world.body(w.b).angularVelocity.z(), -4.0, 1e-3);
   const JointState& s = w.world.jointState(w.gear);
-  EXPECT_NEAR(s.wheelAngle[0], 10.0, 0.02);
-  EXPECT_NEAR(s.wheelAngle[1], -20.0, 0.04);
+  EXPECT_NEAR(s.angle[0], 10.0, 0.02);
+  EXPECT_NEAR(s.angle[1], -20.0, 0.04);
   EXPECT_NEAR(s.contactRadius[0], 2.0, 1e-9);
   EXPECT_NEAR(s.contactRadius[1], 1.0, 1e-9);
   EXPECT_LT(w.world.jointError(w.gear).linear, 1e-4) << "rim arcs must stay equal over turns";
@@ -88,8 +88,8 @@ TEST(Gears, ChainTurnsBothSprocketsTheSameWay) {
   run(w.world, 6.0);
   EXPECT_NEAR(w.world.body(w.b).angularVelocity.y(), 3.0, 1e-3);
   const JointState& s = w.world.jointState(w.gear);
-  EXPECT_NEAR(s.wheelAngle[1], 2.0 * s.wheelAngle[0], 0.02);
-  EXPECT_GT(s.wheelAngle[1], 2.0 * 2.0 * kPi) << "more than two turns";
+  EXPECT_NEAR(s.angle[1], 2.0 * s.angle[0], 0.02);
+  EXPECT_GT(s.angle[1], 2.0 * 2.0 * kPi) << "more than two turns";
   EXPECT_LT(w.world.jointError(w.gear).linear, 1e-4);
 }
 
@@ -107,7 +107,7 @@ TEST(Gears, BevelGearsFollowTheirGeometryEitherWay) {
     run(w.world, 20.0);  // 3 turns
     EXPECT_NEAR(w.world.body(w.b).angularVelocity.x(), side * 1.0, 1e-3);
     const JointState& s = w.world.jointState(w.gear);
-    EXPECT_NEAR(s.wheelAngle[1], side * s.wheelAngle[0], 0.02);
+    EXPECT_NEAR(s.angle[1], side * s.angle[0], 0.02);
     EXPECT_TRUE(s.contactPoint[0].isApprox(Vec3(1, 0, 0), 1e-9));
     EXPECT_LT(w.world.jointError(w.gear).linear, 1e-4);
   }
@@ -126,17 +126,17 @@ TEST(Gears, BacklashLetsTheDrivenWheelRestUntilTheGapCloses) {
   g.backlash = 0.1;
   w.gear = w.world.createJoint(g);
   run(w.world, 0.05);
-  EXPECT_NEAR(w.world.jointState(w.gear).wheelAngle[1], 0.0, 1e-9) << "inside the gap";
+  EXPECT_NEAR(w.world.jointState(w.gear).angle[1], 0.0, 1e-9) << "inside the gap";
   run(w.world, 0.95);
-  EXPECT_NEAR(w.world.jointState(w.gear).wheelAngle[1], -0.9, 0.03);
+  EXPECT_NEAR(w.world.jointState(w.gear).angle[1], -0.9, 0.03);
   // Reversed, A turns -1 rad/s while B coasts on at -1 rad/s: the rims
   // close the 0.2 m gap at 2 m/s, in 0.1 s; then A drives B at +1 rad/s.
   HingeJointDesc drive = std::get<HingeJointDesc>(w.world.joint(0));
   drive.motor = Motor{-1.0, 5.0};
   w.world.updateJoint(0, drive);
-  const double before = w.world.jointState(w.gear).wheelAngle[1];
+  const double before = w.world.jointState(w.gear).angle[1];
   run(w.world, 0.05);
-  EXPECT_NEAR(w.world.jointState(w.gear).wheelAngle[1] - before, -0.05, 0.01)
+  EXPECT_NEAR(w.world.jointState(w.gear).angle[1] - before, -0.05, 0.01)
       << "B coasts at its own speed inside the gap";
   run(w.world, 1.0);
   EXPECT_NEAR(w.world.body(w.b).angularVelocity.z(), 1.0, 0.03) << "driven back the other way";
