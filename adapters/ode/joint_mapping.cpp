@@ -21,18 +21,25 @@ Vec3 vec(const dVector3 v) {
 using ParamGetter = dReal (*)(dJointID, int);
 
 // ODE's limit-motor of one axis (dxJointLimitMotor): stops at lo/hi with
-// StopERP/StopCFM and Bounce, a velocity motor Vel with FMax.
-void readAxis(dJointID j, ParamGetter get, int group, Limit& limit, Motor& motor) {
+// StopERP/StopCFM and Bounce, a velocity motor Vel with FMax and CFM.
+void readAxis(dJointID j, ParamGetter get, int group, const JointWorldParams& w, Limit& limit,
+              Motor& motor) {
   const double lo = get(j, dParamLoStop + group);
   const double hi = get(j, dParamHiStop + group);
   // ODE ignores stops when lo > hi (its setters refuse to make them so).
   limit.enabled = (lo > -dInfinity || hi < dInfinity) && lo <= hi;
   limit.lo = std::isfinite(lo) ? lo : -kFarStop;
   limit.hi = std::isfinite(hi) ? hi : kFarStop;
-  limit.softness = Softness::erpCfm(get(j, dParamStopERP + group), get(j, dParamStopCFM + group));
+  limit.softness = w.of(get(j, dParamStopERP + group), get(j, dParamStopCFM + group));
   limit.bounce = get(j, dParamBounce + group);
   motor.targetVelocity = get(j, dParamVel + group);
   motor.maxForce = get(j, dParamFMax + group);
+  // A powered axis's row has ODE's dParamCFM (the world's CFM by default).
+  // FudgeFactor is not read: ODE scales with it the motor force it applies
+  // by hand while the axis sits on a stop (its one row per axis serves the
+  // stop then); the core keeps a motor row and stop rows apart and solves
+  // both, the case the factor stands in for.
+  motor.cfm = std::max(0.0, double(get(j, dParamCFM + group)));
 }
 
 JointCommon commonOf(BodyId body1, BodyId body2, const Softness& softness) {
@@ -67,7 +74,7 @@ void readHinge(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorl
   d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
   d.anchor = vec(a1);
   d.axis = vec(axis);
-  readAxis(j, dJointGetHingeParam, 0, d.limit, d.motor);
+  readAxis(j, dJointGetHingeParam, 0, w, d.limit, d.motor);
   out.desc = d;
   out.geometry.add(vec(a1), true, 1);
   out.geometry.add(vec(a2), true, 2);
@@ -82,7 +89,7 @@ void readSlider(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWor
   SliderJointDesc d;
   d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
   d.axis = vec(axis);
-  readAxis(j, dJointGetSliderParam, 0, d.limit, d.motor);
+  readAxis(j, dJointGetSliderParam, 0, w, d.limit, d.motor);
   out.desc = d;
   out.geometry.add(vec(axis), false, 1);
   out.coordinateCount = 1;
@@ -123,8 +130,8 @@ UniversalJointDesc readTwoAxes(dJointID j, BodyId b1, BodyId b2, const TwoAxisGe
   d.anchor = vec(a1);
   d.axis1 = vec(axis2);
   d.axis2 = vec(axis1);
-  readAxis(j, get.param, dParamGroup, d.limit1, d.motor1);
-  readAxis(j, get.param, 0, d.limit2, d.motor2);
+  readAxis(j, get.param, dParamGroup, w, d.limit1, d.motor1);
+  readAxis(j, get.param, 0, w, d.limit2, d.motor2);
   out.geometry.add(vec(a1), true, 1);
   out.geometry.add(vec(a2), true, 2);
   out.geometry.add(vec(axis1), false, 1);
@@ -160,15 +167,17 @@ void readHinge2(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWor
 
 // One axis of a core 6-DOF joint from an ODE limit-motor: free, or
 // limited by the stops, with the motor.
-SixDofJointDesc::Axis sixDofAxis(dJointID j, ParamGetter get, int group) {
+SixDofJointDesc::Axis sixDofAxis(dJointID j, ParamGetter get, int group,
+                                 const JointWorldParams& w) {
   Limit limit;
   Motor motor;
-  readAxis(j, get, group, limit, motor);
+  readAxis(j, get, group, w, limit, motor);
   SixDofJointDesc::Axis a;
   a.mode = limit.enabled ? SixDofJointDesc::Mode::Limited : SixDofJointDesc::Mode::Free;
   a.lo = limit.lo;
   a.hi = limit.hi;
   a.bounce = limit.bounce;
+  a.stopSoftness = limit.softness;
   a.motor = motor;
   return a;
 }
@@ -176,7 +185,7 @@ SixDofJointDesc::Axis sixDofAxis(dJointID j, ParamGetter get, int group) {
 // Piston (cylindrical): slides along and turns about one axis (fixed in
 // body1). A core 6-DOF joint with the frame's x on that axis: x
 // translation and x rotation free or limited (ODE's limit-motors 1 and 2),
-// the rest locked. The 6-DOF joint has one stop softness: limit-motor 1's.
+// the rest locked.
 void readPiston(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldParams& w) {
   dVector3 a1, a2, axis;
   dJointGetPistonAnchor(j, a1);
@@ -186,10 +195,8 @@ void readPiston(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWor
   d.common = commonOf(b1, b2, w.of(w.erp, w.cfm));
   d.anchor = vec(a1);
   d.frame = frameFromAxis(vec(axis).normalized());
-  d.axes[0] = sixDofAxis(j, dJointGetPistonParam, 0);
-  d.axes[3] = sixDofAxis(j, dJointGetPistonParam, dParamGroup);
-  d.limitSoftness = Softness::erpCfm(dJointGetPistonParam(j, dParamStopERP),
-                                     dJointGetPistonParam(j, dParamStopCFM));
+  d.axes[0] = sixDofAxis(j, dJointGetPistonParam, 0, w);
+  d.axes[3] = sixDofAxis(j, dJointGetPistonParam, dParamGroup, w);
   out.desc = d;
   out.geometry.add(vec(a1), true, 1);
   out.geometry.add(vec(a2), true, 2);
@@ -239,7 +246,7 @@ void readAMotorEuler(dJointID j, BodyId b1, BodyId b2, const JointSetOnly& set, 
     return;
   }
   for (int i = 0; i < 3; ++i) {
-    readAxis(j, dJointGetAMotorParam, dParamGroup * i, d.axes[i].limit, d.axes[i].motor);
+    readAxis(j, dJointGetAMotorParam, dParamGroup * i, w, d.axes[i].limit, d.axes[i].motor);
   }
   out.desc = d;
   // Remade when the program sets the axes again.
@@ -270,7 +277,7 @@ void readAMotor(dJointID j, BodyId b1, BodyId b2, const JointSetOnly& set, Joint
     a.axis = vec(axis);
     const int rel = dJointGetAMotorAxisRel(j, i);
     a.frame = motorFrame(rel);
-    readAxis(j, dJointGetAMotorParam, dParamGroup * i, a.limit, a.motor);
+    readAxis(j, dJointGetAMotorParam, dParamGroup * i, w, a.limit, a.motor);
     a.value = dJointGetAMotorAngle(j, i);
     out.geometry.add(vec(axis), false, rel);
   }
@@ -296,7 +303,7 @@ void readLMotor(dJointID j, BodyId b1, BodyId b2, const int rel[3], JointRead& o
     a.axis = vec(axis);
     a.frame = motorFrame(rel[i]);
     Limit unused;
-    readAxis(j, dJointGetLMotorParam, dParamGroup * i, unused, a.motor);
+    readAxis(j, dJointGetLMotorParam, dParamGroup * i, w, unused, a.motor);
     out.geometry.add(vec(axis), false, rel[i]);
   }
   out.desc = d;
@@ -345,8 +352,8 @@ void readPR(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldPa
   d.anchor = vec(anchor);
   d.axisP = vec(axisP);
   d.axisR = vec(axisR);
-  readAxis(j, dJointGetPRParam, 0, d.limitP, d.motorP);
-  readAxis(j, dJointGetPRParam, dParamGroup, d.limitR, d.motorR);
+  readAxis(j, dJointGetPRParam, 0, w, d.limitP, d.motorP);
+  readAxis(j, dJointGetPRParam, dParamGroup, w, d.limitR, d.motorR);
   out.desc = d;
   out.geometry.add(vec(axisP), false, 1);
   out.geometry.add(vec(axisR), false, 1);
@@ -371,9 +378,9 @@ void readPU(dJointID j, BodyId b1, BodyId b2, JointRead& out, const JointWorldPa
   d.axisP = vec(axisP);
   d.axis1 = vec(axis2);
   d.axis2 = vec(axis1);
-  readAxis(j, dJointGetPUParam, 2 * dParamGroup, d.limitP, d.motorP);
-  readAxis(j, dJointGetPUParam, dParamGroup, d.limit1, d.motor1);
-  readAxis(j, dJointGetPUParam, 0, d.limit2, d.motor2);
+  readAxis(j, dJointGetPUParam, 2 * dParamGroup, w, d.limitP, d.motorP);
+  readAxis(j, dJointGetPUParam, dParamGroup, w, d.limit1, d.motor1);
+  readAxis(j, dJointGetPUParam, 0, w, d.limit2, d.motor2);
   out.desc = d;
   out.geometry.add(vec(axis1), false, 1);
   out.geometry.add(vec(axis2), false, 2);

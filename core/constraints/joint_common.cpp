@@ -84,6 +84,9 @@ void validateMotor(const Motor& m, const char* what) {
   if (!std::isfinite(m.targetVelocity) || !std::isfinite(m.maxForce) || m.maxForce < 0.0) {
     throw Error(std::string(what) + " motor needs a finite target velocity and max force >= 0");
   }
+  if (!std::isfinite(m.cfm) || m.cfm < 0.0) {
+    throw Error(std::string(what) + " motor cfm must be finite and >= 0");
+  }
 }
 
 JointFrames framesAt(const Body& a, const Body& b, const Vec3& anchor, const Quat& worldFrame) {

@@ -30,6 +30,9 @@ struct Limit {
 struct Motor {
   double targetVelocity = 0.0;
   double maxForce = 0.0;
+  // Compliance: the axis lags the target by cfm times the motor's force
+  // (m/s per N, rad/s per N m; ODE's dParamCFM of a powered axis). 0: stiff.
+  double cfm = 0.0;
   bool active() const { return maxForce > 0.0; }
 };
 
@@ -108,13 +111,13 @@ struct SixDofJointDesc {
     Mode mode = Mode::Locked;
     double lo = 0.0, hi = 0.0;
     Motor motor;
-    double bounce = 0.0;  // restitution at the stops, 0..1
+    double bounce = 0.0;                                 // restitution at the stops, 0..1
+    Softness stopSoftness = Softness::erpCfm(0.2, 0.0);  // ODE's StopERP / StopCFM
   };
   JointCommon common;
   Vec3 anchor = Vec3::Zero();
   Quat frame = Quat::Identity();  // world orientation of the joint frame at creation
   Axis axes[6];
-  Softness limitSoftness = Softness::erpCfm(0.2, 0.0);
 };
 
 // Keeps the distance between two anchors within [minLength, maxLength]

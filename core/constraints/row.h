@@ -28,7 +28,7 @@ struct ConstraintRow {
   double target = 0.0;     // motor target velocity
   double bias = 0.0;       // b in  J v + b + gamma P = 0
   double biasRelax = 0.0;  // b kept in the bias-free relax pass (speculative rows, motors)
-  double gamma = 0.0;      // CFM / h
+  double gamma = 0.0;      // CFM / h (Velocity rows are built with the CFM; prepare divides)
   double effMass = 0.0;    // 1 / (K_ii + gamma): used when the row is solved alone
   double lo = -kInf;       // bounds on the accumulated impulse, N s
   double hi = kInf;

@@ -35,6 +35,7 @@ void validateJoint(const SixDofJointDesc& d) {
       l.lo = ax.lo;
       l.hi = ax.hi;
       l.bounce = ax.bounce;
+      l.softness = ax.stopSoftness;
       validateLimit(l, names[i]);
     }
     validateMotor(ax.motor, names[i]);
@@ -72,7 +73,7 @@ void buildJointRows(const SixDofJointDesc& d, const JointPose& p, RowWriter& out
       continue;
     }
     const Stops stops{ax.mode == Mode::Limited, ax.lo, ax.hi, ax.bounce};
-    addCoordinateRows(rate, rate.C, stops, d.limitSoftness, ax.motor, 6 + 3 * i, out);
+    addCoordinateRows(rate, rate.C, stops, ax.stopSoftness, ax.motor, 6 + 3 * i, out);
   }
   const RelativeRotation rel(p);
   int unlocked = 0;
@@ -88,7 +89,7 @@ void buildJointRows(const SixDofJointDesc& d, const JointPose& p, RowWriter& out
       }
       angularAxisRow(p.axisA(i), 0.0, rate);
       const Stops stops{ax.mode == Mode::Limited, ax.lo, ax.hi, ax.bounce};
-      addCoordinateRows(rate, rel.angle(i), stops, d.limitSoftness, ax.motor, 15 + 3 * i, out);
+      addCoordinateRows(rate, rel.angle(i), stops, ax.stopSoftness, ax.motor, 15 + 3 * i, out);
     }
     addRotationRows(rel, locked, d.common.softness, 3, out);
     return;
@@ -114,7 +115,7 @@ void buildJointRows(const SixDofJointDesc& d, const JointPose& p, RowWriter& out
       continue;
     }
     const Stops stops{ax.mode == Mode::Limited, ax.lo, ax.hi, ax.bounce};
-    addCoordinateRows(rate, angle, stops, d.limitSoftness, ax.motor, 15 + 3 * i, out);
+    addCoordinateRows(rate, angle, stops, ax.stopSoftness, ax.motor, 15 + 3 * i, out);
   }
 }
 

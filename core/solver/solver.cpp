@@ -347,7 +347,7 @@ void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, dou
       t.slot = static_cast<std::uint8_t>(kMaxManifoldPoints + 2 * i + d);
       t.biasKind = RowBias::Velocity;
       t.target = motions[d];
-      t.gamma = slips[d] / h;  // force-dependent slip (ODE slip1/2 is a CFM)
+      t.gamma = slips[d];  // force-dependent slip (ODE slip1/2 is a CFM)
       t.impulse = warmRatio * point.tangentImpulse[d];
       if (surface.friction == ContactSurface::Friction::Force) {
         t.lo = -mus[d];  // a force; prepare turns it into an impulse bound
@@ -402,10 +402,11 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
     const double kDiag = a.invMass * row.linA.squaredNorm() + row.angA.dot(row.invIangA) +
                          b.invMass * row.linB.squaredNorm() + row.angB.dot(row.invIangB);
     switch (row.biasKind) {
-      case RowBias::Velocity:  // motors, friction: lo/hi came as forces
+      case RowBias::Velocity:  // motors, friction: lo/hi and gamma came per unit force
         row.bias = row.biasRelax = -row.target;
         row.lo *= h;
         row.hi *= h;
+        row.gamma /= h;
         break;
       case RowBias::Speculative: {
         // Restitution reverses the approach speed from before this

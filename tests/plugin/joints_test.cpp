@@ -135,6 +135,32 @@ TEST(OdeJoints, HingeMotorReachesItsSpeed) {
   EXPECT_LT(run.maxDifference(0), 0.01);
 }
 
+// A motor told to hold a pendulum still (Vel 0) with a compliant row
+// (dParamCFM 0.5 rad/s per N m) is a damper: the pendulum sinks at up to
+// CFM times the gravity torque (2.45 rad/s level), as with dWorldStep.
+// Without the CFM it would not move.
+TEST(OdeJoints, HingeMotorCfmLetsThePendulumSink) {
+  auto build = [](OdeScene& s) {
+    dBodyID bob = s.box(0.5, 0.0, 1.0);
+    dJointID j = s.add(dJointCreateHinge(s.world, 0), bob, nullptr);
+    dJointSetHingeAnchor(j, 0.0, 0.0, 1.0);
+    dJointSetHingeAxis(j, 0.0, 1.0, 0.0);
+    dJointSetHingeParam(j, dParamVel, 0.0);
+    dJointSetHingeParam(j, dParamFMax, 100.0);
+    dJointSetHingeParam(j, dParamCFM, 0.5);
+  };
+  auto probe = [](OdeScene& s) {
+    return std::vector<double>{dJointGetHingeAngle(s.joints[0]),
+                               dJointGetHingeAngleRate(s.joints[0])};
+  };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep, 20, highEffort);
+  run.report("angle (rad)", 0);
+  run.report("rate (rad/s)", 1);
+  EXPECT_GT(TwinRun::maxOf(run.direct, 0), 0.5);
+  EXPECT_LT(run.maxDifference(0), 0.01);
+  EXPECT_LT(run.maxDifference(1), 0.02);
+}
+
 // A slider on a 45 degree incline with a stop 0.2 m down and a motor
 // pushing up on a second run.
 TEST(OdeJoints, SliderStopAndMotor) {
@@ -292,6 +318,36 @@ TEST(OdeJoints, PistonSlidesToItsStopAndTurns) {
   EXPECT_NEAR(run.block.back()[1], 2.0, 0.01);
   EXPECT_LT(run.maxDifference(0), 0.01);
   EXPECT_LT(run.maxDifference(1), 0.05);
+}
+
+// Each of the piston's stops has its own softness: the turn is driven
+// (1 N m) into a soft stop (StopERP2 0.2, StopCFM2 1: a 48 N m/rad spring
+// at this step) that gives 0.02 rad, while the slide stop stays rigid.
+TEST(OdeJoints, PistonStopsHaveTheirOwnSoftness) {
+  auto build = [](OdeScene& s) {
+    dWorldSetGravity(s.world, 0, 0, 0);
+    dBodyID body = s.box(0.0, 0.0, 1.0);
+    dJointID j = s.add(dJointCreatePiston(s.world, 0), body, nullptr);
+    dJointSetPistonAnchor(j, 0.0, 0.0, 1.0);
+    dJointSetPistonAxis(j, 0.0, 0.0, 1.0);
+    dJointSetPistonParam(j, dParamHiStop2, 0.5);
+    dJointSetPistonParam(j, dParamStopCFM2, 1.0);
+    dJointSetPistonParam(j, dParamVel2, 2.0);
+    dJointSetPistonParam(j, dParamFMax2, 1.0);
+    dJointSetPistonParam(j, dParamHiStop, 0.1);
+    dJointSetPistonParam(j, dParamVel, 1.0);
+    dJointSetPistonParam(j, dParamFMax, 1.0);
+  };
+  auto probe = [](OdeScene& s) {
+    return std::vector<double>{dJointGetPistonAngle(s.joints[0]),
+                               dJointGetPistonPosition(s.joints[0])};
+  };
+  const TwinRun run = runTwin(build, probe, 2.0, kStep, 20, highEffort);
+  run.report("piston angle (rad)", 0);
+  run.report("piston position (m)", 1);
+  EXPECT_NEAR(run.direct.back()[0], 0.5 + 1.0 / 48.0, 0.003);
+  EXPECT_NEAR(run.block.back()[0], run.direct.back()[0], 0.002);
+  EXPECT_NEAR(run.block.back()[1], 0.1, 1e-3) << "the slide stop stays rigid";
 }
 
 // AMotor (user mode), no gravity: a motor about the body's own z axis

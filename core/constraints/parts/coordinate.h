@@ -45,6 +45,7 @@ inline void addCoordinateRows(const ConstraintRow& rate, double value, const Sto
     m.target = motor.targetVelocity;
     m.lo = -motor.maxForce;  // a force here; prepare() turns it into an impulse bound
     m.hi = motor.maxForce;
+    m.gamma = motor.cfm;  // per unit force; prepare() makes it per unit impulse
   }
   if (!limit.enabled) return;
   if (limit.lo == limit.hi) {
