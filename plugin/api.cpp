@@ -224,15 +224,24 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal)) {
     return 0;
   }
   Registry& registry = Registry::instance();
-  std::lock_guard lock(registry.mutex());
+  std::unique_lock lock(registry.mutex());
   WorldBridge& bridge = bridgeFor(w);
   WorldState& state = worldStates()[w];
   const StepOutcome outcome = bridge.step(*registry.world(w), h);
   state.message = bridge.message();
   switch (outcome) {
-    case StepOutcome::Stepped:
+    case StepOutcome::Stepped: {
       state.stepper = dBlockStepperBlockstep;
+      // The program's moved callbacks, outside the lock (they may call
+      // ODE, even destroy bodies: each is looked up again before its call).
+      static thread_local std::vector<dBodyID> moved;
+      moved = bridge.movedWithCallback();
+      lock.unlock();
+      for (dBodyID b : moved) {
+        if (const ode::MovedCallback callback = registry.movedCallback(b)) callback(b);
+      }
       return 1;
+    }
     case StepOutcome::Unsupported:
       sayOnce(state, w, bridge.message(), "this world is stepped by ODE");
       state.stepper = dBlockStepperOde;

@@ -97,6 +97,12 @@ void dBodyDestroy(dBodyID b) {
   Registry::instance().bodyDestroyed(b);
 }
 
+void dBodySetMovedCallback(dBodyID b, void (*callback)(dBodyID)) {
+  BLOCKSTEP_REAL(dBodySetMovedCallback);
+  real_dBodySetMovedCallback(b, callback);
+  Registry::instance().movedCallbackSet(b, callback);
+}
+
 void dBodySetMass(dBodyID b, const dMass* mass) {
   BLOCKSTEP_REAL(dBodySetMass);
   if (goodMass(mass)) real_dBodySetMass(b, mass);

@@ -53,6 +53,11 @@ void Registry::bodyDestroyed(dBodyID body) {
   bodyWorld_.erase(body);
 }
 
+void Registry::movedCallbackSet(dBodyID body, MovedCallback callback) {
+  std::lock_guard lock(mutex_);
+  if (BodyRecord* r = bodyWorld_.find(body)) r->moved = callback;
+}
+
 void Registry::jointCreated(dWorldID world, dJointGroupID group, dJointID joint,
                             const dContact* contact) {
   std::lock_guard lock(mutex_);

@@ -45,6 +45,8 @@ struct WorldRecord {
   std::unique_ptr<WorldBridge> bridge;  // the blockstep mirror, made at the first step
 };
 
+using MovedCallback = void (*)(dBodyID);
+
 class Registry {
  public:
   Registry();
@@ -64,12 +66,18 @@ class Registry {
   void plane2dParamSet(dJointID joint, int motor, int parameter, double value);
   void amotorAxisSet(dJointID joint, int axis, int rel, const double world[3]);
   void amotorModeSet(dJointID joint);
+  void movedCallbackSet(dBodyID body, MovedCallback callback);
 
   // nullptr for a world never seen.
   WorldRecord* world(dWorldID world);
   WorldRecord& ensureWorld(dWorldID world);
   const JointRecord* joint(dJointID joint) const { return joints_.find(joint); }
   bool knowsBody(dBodyID body) const { return bodyWorld_.find(body) != nullptr; }
+  // dBodySetMovedCallback's function (ODE has no getter), or nullptr.
+  MovedCallback movedCallback(dBodyID body) const {
+    const BodyRecord* r = bodyWorld_.find(body);
+    return r ? r->moved : nullptr;
+  }
 
   // Hooks and steps take this lock; one step runs at a time per process.
   std::recursive_mutex& mutex() { return mutex_; }
@@ -83,6 +91,7 @@ class Registry {
   struct BodyRecord {
     dWorldID world = nullptr;
     std::uint32_t index = 0;
+    MovedCallback moved = nullptr;
   };
   PointerMap<dBodyID, BodyRecord> bodyWorld_;
   PointerMap<dJointID, JointRecord> joints_;

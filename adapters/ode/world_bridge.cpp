@@ -253,6 +253,17 @@ void WorldBridge::syncBodies(const WorldRecord& record) {
     core_.setGravityEnabled(id, dBodyGetGravityMode(b) != 0);
     const double maxSpeed = dBodyGetMaxAngularSpeed(b);
     core_.setMaxAngularSpeed(id, maxSpeed >= dInfinity ? kInf : maxSpeed);
+    // ODE's finite rotation mode (and axis, zero for none) and per-body
+    // gyroscopic mode.
+    RotationUpdate rotation;
+    rotation.finite = dBodyGetFiniteRotationMode(b) != 0;
+    dVector3 axis;
+    dBodyGetFiniteRotationAxis(b, axis);
+    rotation.axis = vec(axis);
+    rotation.gyroscopic = dBodyGetGyroscopicMode(b) != 0;
+    if (!rotation.axis.allFinite())
+      throw Error("ODE " + bodyLabel(b) + " has a non-finite finite rotation axis");
+    core_.setRotationUpdate(id, rotation);
   }
 }
 
@@ -437,8 +448,10 @@ void WorldBridge::syncJoints(const WorldRecord& record) {
 // ODE's dxStepBody damping (util.cpp): after the position update, a
 // velocity above its threshold is scaled by (1 - scale).
 void WorldBridge::writeBack(const WorldRecord& record) {
+  movedWithCallback_.clear();
   for (dBodyID b : record.bodies) {
     if (!dBodyIsEnabled(b)) continue;
+    if (Registry::instance().movedCallback(b)) movedWithCallback_.push_back(b);
     const Body& body = core_.body(mapBody(b).id);
     Vec3 v = body.linearVelocity, w = body.angularVelocity;
     const double linScale = dBodyGetLinearDamping(b);

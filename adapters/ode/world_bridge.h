@@ -70,6 +70,11 @@ class WorldBridge {
   // contact points), or nullptr when the joint has no core joint yet.
   const JointState* jointState(dJointID joint) const;
 
+  // The bodies the last step moved that have a dBodySetMovedCallback; the
+  // caller calls them once the step is over (ODE calls them as it moves
+  // each body, after the solve).
+  const std::vector<dBodyID>& movedWithCallback() const { return movedWithCallback_; }
+
   BridgeSettings& settings() { return settings_; }
   const StepStats& stats() const { return core_.lastStepStats(); }
   const World& core() const { return core_; }
@@ -135,6 +140,7 @@ class WorldBridge {
     Vec3 position;
   };
   std::vector<ContactFeedback> contactFeedback_;
+  std::vector<dBodyID> movedWithCallback_;
   WorldContactParams contactParams_;
   double step_ = 0.0;
   std::string message_;

@@ -20,6 +20,20 @@ enum class BodyType : std::uint8_t {
   Static,     // never moves
 };
 
+// How a body's orientation follows its angular velocity. By default the
+// first-order quaternion step of section 3, q += h/2 w q, normalized.
+// Finite: the exact rotation by w h (ODE's finite rotation mode), for
+// bodies that turn far in one step (fast wheels), or only about `axis`
+// when it is set (world, unit; the rest of w takes the first-order step),
+// as for a wheel on its axle. gyroscopic: the body feels the w x (I w)
+// term when SolverSettings::gyroscopic is on (ODE's per-body gyroscopic
+// mode).
+struct RotationUpdate {
+  bool finite = false;
+  Vec3 axis = Vec3::Zero();  // zero: finite about w itself
+  bool gyroscopic = true;
+};
+
 struct BodyDesc {
   BodyType type = BodyType::Dynamic;
   Vec3 position = Vec3::Zero();         // centre of mass, world, m
@@ -32,6 +46,7 @@ struct BodyDesc {
   double linearDamping = 0.0;           // 1/s: v *= 1 / (1 + h c)
   double angularDamping = 0.0;          // 1/s
   double maxAngularSpeed = std::numeric_limits<double>::infinity();  // rad/s
+  RotationUpdate rotation;
 };
 
 struct Body {
@@ -50,6 +65,7 @@ struct Body {
   double linearDamping = 0.0;
   double angularDamping = 0.0;
   double maxAngularSpeed = std::numeric_limits<double>::infinity();
+  RotationUpdate rotation;
   bool alive = true;  // false once destroyed; the slot is reused
 
   bool isDynamic() const { return type == BodyType::Dynamic; }

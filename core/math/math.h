@@ -47,6 +47,15 @@ inline Quat integrateRotation(const Quat& q, const Vec3& w, double h) {
   return out;
 }
 
+// The exact rotation by the rotation vector w h, applied to q (ODE's
+// finite rotation): [cos(|w| h / 2), sin(|w| h / 2) w / |w|] q.
+inline Quat rotateExactly(const Quat& q, const Vec3& w, double h) {
+  const double angle = w.norm() * h;
+  if (angle < 1e-12) return q;
+  const Quat turn(Eigen::AngleAxisd(angle, w / w.norm()));
+  return (turn * q).normalized();
+}
+
 // Two unit vectors perpendicular to n and to each other (n must be unit).
 inline void perpendicularBasis(const Vec3& n, Vec3& t1, Vec3& t2) {
   // Pick the axis least aligned with n to stay well conditioned.

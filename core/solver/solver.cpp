@@ -205,7 +205,7 @@ void Solver::integrateVelocities(const StepInput& in, const SolverSettings& s, d
     Vec3 v = b.linearVelocity;
     Vec3 w = b.angularVelocity;
     gyroOffset_[i].setZero();
-    if (s.gyroscopic) {
+    if (s.gyroscopic && b.rotation.gyroscopic) {
       // Euler's equation in the body frame, I dw/dt + w x (I w) = 0, by
       // the implicit midpoint rule: I (w' - w) + h m x (I m) = 0 with
       // m = (w + w') / 2, solved by Newton's method (3x3, a few steps).
@@ -718,16 +718,26 @@ void Solver::integratePositions(const StepInput& in, const SolverSettings& s, do
     const Vec3& v = explicitEuler ? startV_[i] : b.linearVelocity;
     const Vec3& w = explicitEuler ? startW_[i] : b.angularVelocity;
     b.position += h * v;
-    if (s.gyroscopic && b.isDynamic()) {
+    if (s.gyroscopic && b.rotation.gyroscopic && b.isDynamic()) {
       const Quat before = b.orientation;
-      b.orientation = integrateRotation(b.orientation, w + gyroOffset_[i], h);
+      b.orientation = turn(b.orientation, b.rotation, w + gyroOffset_[i], h);
       const Vec3 turned = b.orientation * (before.conjugate() * b.angularVelocity);
       b.angularVelocity = turned;
       bodies_[i].w = turned;
       continue;
     }
-    b.orientation = integrateRotation(b.orientation, w, h);
+    b.orientation = turn(b.orientation, b.rotation, w, h);
   }
+}
+
+// One body's orientation update (RotationUpdate says which).
+Quat Solver::turn(const Quat& q, const RotationUpdate& r, const Vec3& w, double h) {
+  if (!r.finite) return integrateRotation(q, w, h);
+  if (r.axis.isZero()) return rotateExactly(q, w, h);
+  // ODE's finite rotation about an axis: exactly about it, then the rest
+  // of w first-order (ODE gives the rest half of h there; we give it h).
+  const Vec3 along = r.axis.dot(w) * r.axis;
+  return integrateRotation(rotateExactly(q, along, h), w - along, h);
 }
 
 void Solver::relax(const SolverSettings& s, double h) {

@@ -67,6 +67,7 @@ class Solver {
   void warmStart();
   int solve(const SolverSettings& s, int substep, double deadline, StepStats& stats);
   void integratePositions(const StepInput& in, const SolverSettings& s, double h);
+  static Quat turn(const Quat& q, const RotationUpdate& r, const Vec3& w, double h);
   void relax(const SolverSettings& s, double h);
   void storeImpulses(const StepInput& in, double h);
   void finish(const StepInput& in, StepStats& stats);

@@ -76,6 +76,18 @@ World::World() {
 
 // ---------------------------------------------------------------- bodies
 
+namespace {
+// The axis of a finite rotation: zero or a finite direction, made unit.
+RotationUpdate checkedRotation(const RotationUpdate& r, const std::string& who) {
+  RotationUpdate out = r;
+  if (!r.axis.allFinite()) throw Error(who + ": finite rotation axis must be finite");
+  const double n = r.axis.norm();
+  if (n > 0.0 && n < 1e-9) throw Error(who + ": finite rotation axis is too short");
+  if (n > 0.0) out.axis /= n;
+  return out;
+}
+}  // namespace
+
 BodyId World::createBody(const BodyDesc& d) {
   const std::string who = "new body";
   requireFiniteVec(d.position, who + " position");
@@ -101,6 +113,7 @@ BodyId World::createBody(const BodyDesc& d) {
   b.linearDamping = d.linearDamping;
   b.angularDamping = d.angularDamping;
   b.maxAngularSpeed = d.maxAngularSpeed;
+  b.rotation = checkedRotation(d.rotation, who);
   if (d.type == BodyType::Dynamic) {
     b.mass = d.mass;
     b.invMass = 1.0 / d.mass;
@@ -218,6 +231,10 @@ void World::setDamping(BodyId id, double linear, double angular) {
   Body& b = mutableBody(id);
   b.linearDamping = linear;
   b.angularDamping = angular;
+}
+
+void World::setRotationUpdate(BodyId id, const RotationUpdate& rotation) {
+  mutableBody(id).rotation = checkedRotation(rotation, bodyName(id));
 }
 
 void World::setMaxAngularSpeed(BodyId id, double maxSpeed) {

@@ -47,6 +47,7 @@ class World {
   void setGravityEnabled(BodyId id, bool enabled);
   void setDamping(BodyId id, double linear, double angular);
   void setMaxAngularSpeed(BodyId id, double maxSpeed);
+  void setRotationUpdate(BodyId id, const RotationUpdate& rotation);
   void addForce(BodyId id, const Vec3& force);                            // at the centre of mass
   void addTorque(BodyId id, const Vec3& torque);                          // world frame
   void addForceAtPoint(BodyId id, const Vec3& force, const Vec3& point);  // world point

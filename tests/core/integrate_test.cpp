@@ -1,4 +1,7 @@
 // Section 3: the integrators, checked against closed forms.
+#include <cmath>
+
+#include "core/world/error.h"
 #include "support/test_world.h"
 
 namespace blockstep {
@@ -85,6 +88,64 @@ TEST(Integrate, WithoutGyroscopicTermAngularVelocityIsConstant) {
   const BodyId id = world.createBody(d);
   test::stepN(world, 60, 1.0 / 60.0);
   EXPECT_LT((world.body(id).angularVelocity - d.angularVelocity).norm(), 1e-12);
+}
+
+TEST(Integrate, GyroscopicTermCanBeTurnedOffPerBody) {
+  // With the world's term on, a body that opts out keeps w fixed while
+  // its twin tumbles.
+  World world;
+  world.setGravity(Vec3::Zero());
+  SolverSettings s;
+  s.gyroscopic = true;
+  world.setSettings(s);
+  BodyDesc d = boxBody(Vec3::Zero(), 1.0, Vec3(0.2, 0.6, 1.0));
+  d.angularVelocity = Vec3(0.3, 6.0, 0.4);
+  const BodyId tumbling = world.createBody(d);
+  d.position = Vec3(5, 0, 0);
+  d.rotation.gyroscopic = false;
+  const BodyId plain = world.createBody(d);
+  test::stepN(world, 60, 1.0 / 60.0);
+  EXPECT_LT((world.body(plain).angularVelocity - d.angularVelocity).norm(), 1e-12);
+  EXPECT_GT((world.body(tumbling).angularVelocity - d.angularVelocity).norm(), 0.1);
+}
+
+TEST(Integrate, FiniteRotationTurnsExactlyByOmegaH) {
+  // 100 rad/s about z at 60 Hz is 1.67 rad a step: the first-order
+  // quaternion step turns 2 atan(|w| h / 2) = 1.39 rad, the finite one the
+  // whole 1.67 rad, so after 1 s the body is at 100 rad (mod 2 pi).
+  for (bool finite : {false, true}) {
+    World world;
+    world.setGravity(Vec3::Zero());
+    BodyDesc d = boxBody(Vec3::Zero(), 1.0, Vec3(1, 1, 1));
+    d.angularVelocity = Vec3(0, 0, 100.0);
+    d.rotation.finite = finite;
+    const BodyId id = world.createBody(d);
+    test::stepN(world, 60, 1.0 / 60.0);
+    const Quat q = world.body(id).orientation;
+    const double angle = 2.0 * std::atan2(q.z(), q.w());
+    const double expected = finite ? 100.0 : 60.0 * 2.0 * std::atan(100.0 / 120.0);
+    EXPECT_NEAR(std::remainder(angle - expected, 2.0 * kPi), 0.0, 1e-9) << finite;
+  }
+}
+
+TEST(Integrate, FiniteRotationAboutAnAxisOnly) {
+  // A wheel spinning at 100 rad/s about its axle (z) and steered slowly
+  // about x: the spin turns exactly, the steering first-order.
+  World world;
+  world.setGravity(Vec3::Zero());
+  BodyDesc d = boxBody(Vec3::Zero(), 1.0, Vec3(1, 1, 1));
+  d.angularVelocity = Vec3(0.5, 0, 100.0);
+  d.rotation.finite = true;
+  d.rotation.axis = Vec3(0, 0, 2);  // made unit
+  const BodyId id = world.createBody(d);
+  EXPECT_EQ(world.body(id).rotation.axis, Vec3::UnitZ());
+  world.step(1.0 / 60.0);
+  const Quat expected = integrateRotation(Quat(Eigen::AngleAxisd(100.0 / 60.0, Vec3::UnitZ())),
+                                          Vec3(0.5, 0, 0), 1.0 / 60.0);
+  EXPECT_TRUE(world.body(id).orientation.isApprox(expected, 1e-12));
+  RotationUpdate bad;
+  bad.axis = Vec3(0, std::nan(""), 0);
+  EXPECT_THROW(world.setRotationUpdate(id, bad), Error);
 }
 
 TEST(Integrate, DampingAndMaxAngularSpeed) {

@@ -129,5 +129,91 @@ TEST(OdeBodies, KinematicAndGravityModes) {
   EXPECT_LT(dBodyGetPosition(pulled)[2], -1.0);         // free to fall along z
 }
 
+// ODE's per-body rotation settings: finite rotation (exact, also about an
+// axis only) for a fast spinner, and the gyroscopic mode turned off for
+// one body while another keeps it: as with dWorldStep.
+TEST(OdeBodies, FiniteRotationAndGyroscopicModes) {
+  auto build = [](OdeScene& s) {
+    dWorldSetGravity(s.world, 0, 0, 0);
+    dBodyID spinner = s.box(0.0, 0.0, 0.0);
+    dBodySetAngularVel(spinner, 0.0, 0.0, 100.0);  // 1.67 rad a step
+    dBodySetFiniteRotationMode(spinner, 1);
+    dBodySetGyroscopicMode(spinner, 0);
+    dBodyID wheel = s.box(2.0, 0.0, 0.0);
+    dBodySetAngularVel(wheel, 0.0, 80.0, 0.0);
+    dBodySetFiniteRotationMode(wheel, 1);
+    dBodySetFiniteRotationAxis(wheel, 0.0, 1.0, 0.0);
+    dBodySetGyroscopicMode(wheel, 0);
+    dBodyID tumbler = s.box(4.0, 0.0, 0.0);
+    dMass m;
+    dMassSetBoxTotal(&m, 1.0, 0.2, 0.6, 1.0);
+    dBodySetMass(tumbler, &m);
+    dBodySetAngularVel(tumbler, 0.3, 6.0, 0.4);
+    dBodySetGyroscopicMode(tumbler, 0);
+    dBodyID gyro = s.box(6.0, 0.0, 0.0);  // keeps ODE's default: the world's term is on
+    dBodySetAngularVel(gyro, 0.0, 0.0, 1.0);
+  };
+  auto probe = [](OdeScene& s) {
+    std::vector<double> out;
+    for (int i = 0; i < 2; ++i) {
+      const dReal* q = dBodyGetQuaternion(s.bodies[i]);
+      out.insert(out.end(), {q[0], q[1], q[2], q[3]});
+    }
+    const dReal* w = dBodyGetAngularVel(s.bodies[2]);
+    out.insert(out.end(), {w[0], w[1], w[2]});
+    return out;
+  };
+  const TwinRun run = runTwin(build, probe, 1.0, kStep);
+  // Exact rotations compose exactly over blockstep's sub-steps; the
+  // tumbler's first-order turn would not, so its rate is compared.
+  double worst = 0.0;
+  for (int i = 0; i < 11; ++i)
+    worst = std::max(worst, run.maxDifference(i));
+  std::printf("  spinner and wheel quaternions, tumbler rate: max |blockstep - dWorldStep| %.3g\n",
+              worst);
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_NEAR(run.block.back()[8], 0.3, 1e-12) << "no gyroscopic term for the tumbler";
+}
+
+// dBodySetMovedCallback: called once per step for each moved body, after
+// the step, with the new pose already written; a callback may change the
+// world (here it destroys another body) without harm.
+struct MovedLog {
+  int calls = 0;
+  double z = 0.0;
+  dBodyID victim = nullptr;
+};
+MovedLog movedLog;
+
+void onMoved(dBodyID b) {
+  ++movedLog.calls;
+  movedLog.z = dBodyGetPosition(b)[2];
+  if (movedLog.victim) {
+    dBodyDestroy(movedLog.victim);
+    movedLog.victim = nullptr;
+  }
+}
+
+TEST(OdeBodies, MovedCallbackRunsAfterEachStep) {
+  OdeScene s;
+  dBodyID falling = s.box(0.0, 0.0, 1.0);
+  dBodyID other = s.box(1.0, 0.0, 1.0);
+  dBodySetMovedCallback(falling, onMoved);
+  dBodySetMovedCallback(other, onMoved);
+  movedLog = MovedLog{};
+  for (int k = 0; k < 3; ++k)
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  EXPECT_EQ(movedLog.calls, 6);
+  EXPECT_EQ(movedLog.z, dBodyGetPosition(other)[2]) << "the pose after the step";
+  EXPECT_LT(movedLog.z, 1.0);
+  movedLog.victim = other;  // the first callback of the next step destroys it
+  s.bodies.pop_back();
+  movedLog.calls = 0;
+  ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  EXPECT_EQ(movedLog.calls, 1) << "a body destroyed by a callback gets none";
+  ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
+  EXPECT_EQ(movedLog.calls, 2);
+}
+
 }  // namespace
 }  // namespace blockstep::test
