@@ -298,6 +298,16 @@ dReal dJointGetTransmissionRadius2(dJointID j) {
   return s ? dReal(s->contactRadius[0]) : real_dJointGetTransmissionRadius2(j);
 }
 
+// ODE derives the ratio from the radii while stepping, except on parallel
+// axes, where it is the program's setting (which the adapter reads here).
+dReal dJointGetTransmissionRatio(dJointID j) {
+  BLOCKSTEP_REAL(dJointGetTransmissionRatio);
+  const JointState* s =
+      dJointGetTransmissionMode(j) == dTransmissionParallelAxes ? nullptr : steppedJointState(j);
+  return s && s->contactRadius[0] > 0.0 ? dReal(s->contactRadius[1] / s->contactRadius[0])
+                                        : real_dJointGetTransmissionRatio(j);
+}
+
 void dJointGetTransmissionContactPoint1(dJointID j, dVector3 result) {
   BLOCKSTEP_REAL(dJointGetTransmissionContactPoint1);
   const JointState* s = steppedJointState(j);

@@ -753,15 +753,19 @@ void buildGears(OdeScene& s, const GearScene& g) {
 
 // Quantities 0-3: hinge angles and transmission angles; 4: how far the
 // rims' arcs part beyond the backlash (ODE's delta: r1 a1 + r2 a2 for
-// gears, r1 a1 - r2 a2 for a chain), the joint's own error.
+// gears, r1 a1 - r2 a2 for a chain), the joint's own error; 5: the ratio.
 TwinRun runGears(const GearScene& g) {
   auto probe = [g](OdeScene& s) {
     const dJointID t = s.joints[2];
     const double a1 = dJointGetTransmissionAngle1(t), a2 = dJointGetTransmissionAngle2(t);
     const double r1 = dJointGetTransmissionRadius1(t), r2 = dJointGetTransmissionRadius2(t);
     const double delta = g.mode == dTransmissionChainDrive ? r1 * a1 - r2 * a2 : r1 * a1 + r2 * a2;
-    return std::vector<double>{dJointGetHingeAngle(s.joints[0]), dJointGetHingeAngle(s.joints[1]),
-                               a1, a2, std::max(0.0, std::abs(delta) - g.backlash)};
+    return std::vector<double>{dJointGetHingeAngle(s.joints[0]),
+                               dJointGetHingeAngle(s.joints[1]),
+                               a1,
+                               a2,
+                               std::max(0.0, std::abs(delta) - g.backlash),
+                               dJointGetTransmissionRatio(t)};
   };
   return runTwin([&g](OdeScene& s) { buildGears(s, g); }, probe, kSeconds, kStep, 20, highEffort);
 }
@@ -792,6 +796,7 @@ TEST(OdeJoints, TransmissionGearsChainAndBevel) {
     EXPECT_LT(run.maxDifference(3), 0.01);
     run.reportError("rim arc error (m)", 4);
     EXPECT_LE(TwinRun::maxOf(run.block, 4), TwinRun::maxOf(run.quick, 4) + 1e-6);
+    EXPECT_NEAR(run.block.back()[5], run.direct.back()[5], 1e-5) << "the ratio ODE reports";
   }
 }
 
