@@ -24,13 +24,14 @@ struct ConstraintRow {
   Vec3 linA = Vec3::Zero(), angA = Vec3::Zero();
   Vec3 linB = Vec3::Zero(), angB = Vec3::Zero();
   Vec3 invIangA = Vec3::Zero(), invIangB = Vec3::Zero();  // M^-1 J^T, angular parts
-  double C = 0.0;          // position error (m or rad), written by the joint's parts
-  double target = 0.0;     // motor target velocity
-  double bias = 0.0;       // b in  J v + b + gamma P = 0
-  double biasRelax = 0.0;  // b kept in the bias-free relax pass (speculative rows, motors)
-  double gamma = 0.0;      // CFM / h (Velocity rows are built with the CFM; prepare divides)
-  double effMass = 0.0;    // 1 / (K_ii + gamma): used when the row is solved alone
-  double lo = -kInf;       // bounds on the accumulated impulse, N s
+  double C = 0.0;           // position error (m or rad), written by the joint's parts
+  double target = 0.0;      // motor target velocity
+  double bias = 0.0;        // b in  J v + b + gamma P = 0
+  double biasRelax = 0.0;   // b kept in the bias-free relax pass (speculative rows, motors)
+  double gamma = 0.0;       // CFM / h (Velocity rows are built with the CFM; prepare divides)
+  double gammaRelax = 0.0;  // gamma in the relax pass (all but contact normals)
+  double effMass = 0.0;     // 1 / (K_ii + gamma): used when the row is solved alone
+  double lo = -kInf;        // bounds on the accumulated impulse, N s
   double hi = kInf;
   double impulse = 0.0;  // accumulated impulse of the current (sub)step
   // One-sided rows (limits, contact normals):

@@ -56,11 +56,15 @@ class Solver {
                        ConstraintBlock& blk);
   void buildContactBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t c,
                          ConstraintBlock& blk);
+  double penetrationRate(const ConstraintRow& row, const ConstraintBlock& blk, double h) const;
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk);
   // J v with the velocities the (sub-)step started from.
   double startVelocity(const ConstraintRow& row, const ConstraintBlock& blk) const;
   void solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b);
   void projectedContactSweeps(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b);
+  void solveFriction(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b);
+  void solveNormals(ConstraintBlock& blk, bool useBias, BlockMode mode, SolverBody& a,
+                    SolverBody& b);
   void solveContact(ConstraintBlock& blk, bool useBias, BlockMode mode, SolverBody& a,
                     SolverBody& b);
   static void storeContactImpulses(ContactManifold& m, const ConstraintRow* rows, int n, double h);
@@ -111,6 +115,7 @@ class Solver {
   int islandCount_ = 0;
   int rowCount_ = 0;
   std::int32_t dummy_ = 0;
+  double stepSize_ = 0.0;  // the whole step being taken (sub-steps divide it)
 };
 
 }  // namespace blockstep
