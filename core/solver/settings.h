@@ -22,6 +22,11 @@ enum class BlockMode : std::uint8_t {
 };
 
 struct SolverSettings {
+  // Island blocks up to this many rows in the presets that use them: a
+  // 64-link ball chain, a few ragdolls joined by contacts. The factor's
+  // memory is rows^2 doubles (300 KB here).
+  static constexpr int kIslandBlockRows = 192;
+
   // Velocity sweeps per (sub-)step: the upper bound when a tolerance or a
   // time budget is set too.
   int iterations = 10;
@@ -49,6 +54,12 @@ struct SolverSettings {
   // Unset: every joint's own ERP/CFM, as in ODE.
   std::optional<Softness> rigidJointSoftness;
   BlockMode blockMode = BlockMode::Block;
+  // Solve an island's joint equality rows together as one block (LDL^T of
+  // the island's K within its profile: island_block.h) when it has at most
+  // this many; larger islands keep one block per joint. Exact in one sweep
+  // whatever the mass ratios (a light body carrying heavy ones), which
+  // per-joint Gauss-Seidel is not. 0: one block per joint, the paper's.
+  int islandBlockRows = 0;
   Integrator integrator = Integrator::SemiImplicitEuler;
   // Gyroscopic term w x (I w), integrated implicitly (off by default, as
   // section 4.1 suggests).
@@ -71,6 +82,7 @@ struct SolverSettings {
   // iteration count; springs stiffer than about 0.5 / h_sub jitter).
   static SolverSettings subStepped(int substeps) {
     SolverSettings s;
+    s.islandBlockRows = kIslandBlockRows;
     s.substeps = substeps;
     s.iterations = 1;
     s.relaxIterations = 1;

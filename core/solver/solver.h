@@ -12,6 +12,7 @@
 #include "core/constraints/joint.h"
 #include "core/constraints/parts/row_writer.h"
 #include "core/constraints/row.h"
+#include "core/solver/island_block.h"
 #include "core/solver/settings.h"
 #include "core/solver/solver_body.h"
 
@@ -77,6 +78,10 @@ class Solver {
   void finish(const StepInput& in, StepStats& stats);
 
   void sweep(int island, bool useBias, BlockMode mode);
+  bool useIslandBlock_ = false;        // this step's settings ask for island blocks
+  bool islandBlocksSelected_ = false;  // chosen on the step's first sub-step
+  // The rigid-row softness inside island blocks (prepare() says why).
+  Softness islandRigid_;
   void coupleBoundedRows(const ConstraintBlock& blk);
   void solveCoupledRow(int rowIndex, bool useBias, ConstraintRow* eq, int ne, SolverBody& a,
                        SolverBody& b);
@@ -89,6 +94,7 @@ class Solver {
   std::vector<Vec3> gyroOffset_;       // midpoint minus end angular velocity (gyroscopic)
   std::vector<ConstraintBlock> blocks_;
   std::vector<ConstraintRow> rows_;
+  IslandBlocks islandBlocks_;  // islands whose joint equality rows are one block
   // How a bounded row's impulse moves the bodies and its joint's equality
   // impulses when solved in the equality block's null space (solver.cpp,
   // coupleBoundedRows). Indexed like rows_; only bounded rows use it.
