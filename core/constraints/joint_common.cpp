@@ -81,8 +81,9 @@ void validateLimit(const Limit& l, const char* what) {
 }
 
 void validateMotor(const Motor& m, const char* what) {
-  if (!std::isfinite(m.targetVelocity) || !std::isfinite(m.maxForce) || m.maxForce < 0.0) {
-    throw Error(std::string(what) + " motor needs a finite target velocity and max force >= 0");
+  if (!std::isfinite(m.targetVelocity) || !(m.maxForce >= 0.0)) {
+    throw Error(std::string(what) +
+                " motor needs a finite target velocity and a max force >= 0 (infinity allowed)");
   }
   if (!std::isfinite(m.cfm) || m.cfm < 0.0) {
     throw Error(std::string(what) + " motor cfm must be finite and >= 0");

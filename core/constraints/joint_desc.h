@@ -26,7 +26,8 @@ struct Limit {
 };
 
 // A velocity motor: drives the axis toward targetVelocity with at most
-// maxForce (N or N m). maxForce == 0 turns it off.
+// maxForce (N or N m). maxForce == 0 turns it off; infinity makes the axis
+// reach its target within the step whatever it takes (ODE's dInfinity FMax).
 struct Motor {
   double targetVelocity = 0.0;
   double maxForce = 0.0;
