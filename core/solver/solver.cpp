@@ -32,11 +32,12 @@ void solveRow(ConstraintRow& row, bool useBias, SolverBody& a, SolverBody& b) {
 }
 
 // The residual a row reports: |J v + b + gamma P|, or 0 where the
-// accumulated impulse sits on the bound the row pushes against.
-double reportedResidual(const ConstraintRow& row, const SolverBody& a, const SolverBody& b) {
+// accumulated impulse sits on the bound [lo, hi] the row pushes against.
+double reportedResidual(const ConstraintRow& row, double lo, double hi, const SolverBody& a,
+                        const SolverBody& b) {
   const double r = rowResidual(row, true, a, b);
-  if (row.impulse <= row.lo && r > 0.0) return 0.0;
-  if (row.impulse >= row.hi && r < 0.0) return 0.0;
+  if (row.impulse <= lo && r > 0.0) return 0.0;
+  if (row.impulse >= hi && r < 0.0) return 0.0;
   return std::abs(r);
 }
 
@@ -702,9 +703,25 @@ void Solver::islandResidual(int island, double& max, double& sumSq, int& count) 
     const SolverBody& a = bodies_[blk.bodyA];
     const SolverBody& b = bodies_[blk.bodyB];
     const ConstraintRow* rows = &rows_[blk.firstRow];
+    double normalSum = 0.0;
+    if (blk.unilateral) {
+      for (int i = 0; i < blk.equality; ++i)
+        normalSum += rows[i].impulse;
+    }
     for (int i = 0; i < blk.rowCount(); ++i) {
-      if (rows[i].effMass == 0.0) continue;  // acts on nothing that moves
-      const double r = reportedResidual(rows[i], a, b);
+      const ConstraintRow& row = rows[i];
+      if (row.effMass == 0.0) continue;  // acts on nothing that moves
+      // A friction row's bounds follow the normal impulses as they are now,
+      // not as they were when it was last solved: with a cold start its
+      // stored bound is 0, and a tolerance stop after one sweep left every
+      // box of ODE's demo_friction without friction.
+      double lo = row.lo, hi = row.hi;
+      if (row.frictionOf != ConstraintRow::kNoFriction) {
+        hi = row.mu * (row.frictionOf == ConstraintRow::kAllNormals ? normalSum
+                                                                    : rows[row.frictionOf].impulse);
+        lo = -hi;
+      }
+      const double r = reportedResidual(row, lo, hi, a, b);
       max = std::max(max, r);
       sumSq += r * r;
       ++count;

@@ -95,6 +95,28 @@ TEST(Contact, BoxStaysBelowTheFrictionAngleAndSlidesAboveIt) {
   }
 }
 
+// A tolerance stop must see friction rows against the normal impulses as
+// they are, not as they were when friction was last solved: cold started,
+// every friction bound is 0 after the first sweep, and the stop ended the
+// solve there (ODE's demo_friction under dWorldStep: every box slid).
+TEST(Contact, ToleranceStopKeepsFrictionBelowTheFrictionAngle) {
+  const double mu = 0.5;
+  for (auto model : {ContactSurface::Friction::Box, ContactSurface::Friction::Cone}) {
+    SCOPED_TRACE(model == ContactSurface::Friction::Box ? "box friction" : "cone friction");
+    for (const SolverSettings& settings : {SolverSettings::direct(), SolverSettings::paper(50)}) {
+      Incline in;
+      makeIncline(in, 0.8 * std::atan(mu), mu, model);
+      SolverSettings s = settings;
+      s.tolerance = 1e-9;
+      in.world.setSettings(s);
+      const Vec3 start = in.world.body(in.box).position;
+      test::stepN(in.world, 300, 1.0 / 60.0);
+      EXPECT_LT((in.world.body(in.box).position - start).norm(), 1e-3) << "creep over 5 s";
+      EXPECT_GT(in.world.lastStepStats().iterations, 1) << "friction needs more than one sweep";
+    }
+  }
+}
+
 TEST(Contact, ConeFrictionHasNoPreferredDirection) {
   // Pushed diagonally with more than the friction limit, a box on cone
   // friction slides along the push; box friction (each axis clamped
