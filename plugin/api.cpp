@@ -218,7 +218,7 @@ void say(const char* format, ...) {
   std::fprintf(stderr, "blockstep: %s\n", text);
 }
 
-int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal)) {
+int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeStepper stepper) {
   if (!w) {
     say("dWorldBlockStep: null world");
     return 0;
@@ -227,7 +227,7 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal)) {
   std::unique_lock lock(registry.mutex());
   WorldBridge& bridge = bridgeFor(w);
   WorldState& state = worldStates()[w];
-  const StepOutcome outcome = bridge.step(*registry.world(w), h);
+  const StepOutcome outcome = bridge.step(*registry.world(w), h, stepper);
   state.message = bridge.message();
   switch (outcome) {
     case StepOutcome::Stepped: {

@@ -69,7 +69,8 @@ int dWorldQuickStep(dWorldID w, dReal stepsize) {
 
 int dWorldStep(dWorldID w, dReal stepsize) {
   BLOCKSTEP_REAL(dWorldStep);
-  if (replace().step) return blockStep(w, stepsize, real_dWorldStep);
+  if (replace().step)
+    return blockStep(w, stepsize, real_dWorldStep, blockstep::ode::OdeStepper::Step);
   return real_dWorldStep(w, stepsize);
 }
 

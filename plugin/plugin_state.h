@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "adapters/ode/world_bridge.h"
 #include "core/constraints/joint.h"
 
 namespace blockstep::plugin {
@@ -43,7 +44,10 @@ bool quiet();
 
 // Steps w with blockstep; for content blockstep cannot model, with
 // `fallback` (ODE's own stepper). Returns ODE's convention: 1 stepped, 0 not.
-int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal));
+// `stepper` is the ODE stepper the program called (it chooses the solver
+// while the world follows ODE's settings).
+int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal),
+              ode::OdeStepper stepper = ode::OdeStepper::QuickStep);
 
 // The core joint state of j when blockstep stepped its world last, else
 // nullptr (ODE's own joint state is then the current one).

@@ -69,8 +69,9 @@ Softness WorldBridge::contactSoftness(double erp, double cfm) const {
   return s;
 }
 
-SolverSettings WorldBridge::solverFor(double) const {
+SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   if (settings_.followQuickStepIterations) {
+    if (stepper == OdeStepper::Step) return SolverSettings::direct();
     return BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(world_));
   }
   return settings_.solver;
@@ -110,7 +111,7 @@ void WorldBridge::forgetJoint(dJointID joint) {
 
 // ------------------------------------------------------------------ step
 
-StepOutcome WorldBridge::step(const WorldRecord& record, double h) {
+StepOutcome WorldBridge::step(const WorldRecord& record, double h, OdeStepper stepper) {
   message_.clear();
   if (!(h > 0.0) || !std::isfinite(h) || h > World::kMaxStep) {
     message_ = "step size " + std::to_string(h) + " s is not in (0, " +
@@ -119,7 +120,7 @@ StepOutcome WorldBridge::step(const WorldRecord& record, double h) {
   }
   step_ = h;
   try {
-    SolverSettings solver = solverFor(h);
+    SolverSettings solver = solverFor(stepper);
     bool gyroscopic = false;
     for (dBodyID b : record.bodies)
       gyroscopic |= dBodyGetGyroscopicMode(b) != 0;

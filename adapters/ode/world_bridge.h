@@ -37,11 +37,16 @@ namespace blockstep::ode {
 
 struct WorldRecord;
 
+// Which of ODE's steppers the program called.
+enum class OdeStepper { QuickStep, Step };
+
 struct BridgeSettings {
-  // Derive the solver from the world's quickstep iteration count
+  // Follow what the program asked of ODE. dWorldQuickStep: derive the
+  // solver from the world's quickstep iteration count
   // (dWorldGetQuickStepNumIterations): n iterations become n / 2 sub-steps
   // of one solve sweep and one relax sweep (SolverSettings::subStepped),
   // so an A/B run against quickstep spends the same number of sweeps.
+  // dWorldStep, ODE's exact solver: SolverSettings::direct().
   bool followQuickStepIterations = true;
   SolverSettings solver = SolverSettings::subStepped(10);
 
@@ -58,7 +63,7 @@ class WorldBridge {
  public:
   explicit WorldBridge(dWorldID world);
 
-  StepOutcome step(const WorldRecord& record, double h);
+  StepOutcome step(const WorldRecord& record, double h, OdeStepper stepper = OdeStepper::QuickStep);
   // Why the last step was not Stepped.
   const std::string& message() const { return message_; }
 
@@ -120,7 +125,7 @@ class WorldBridge {
   JointGeometry toLocal(const JointGeometry& g, dBodyID body1, dBodyID body2) const;
   bool sameGeometry(const MappedJoint& m, const JointGeometry& now) const;
   void makeJoint(MappedJoint& m, dJointID j, JointRead& read);
-  SolverSettings solverFor(double h) const;
+  SolverSettings solverFor(OdeStepper stepper) const;
   static Softness jointSoftness(double erp, double cfm, const void* bridge);
   Softness contactSoftness(double erp, double cfm) const;
 

@@ -26,6 +26,9 @@ struct SolverSettings {
   // 64-link ball chain, a few ragdolls joined by contacts. The factor's
   // memory is rows^2 doubles (300 KB here).
   static constexpr int kIslandBlockRows = 192;
+  // Most sweeps of the direct preset: the bounded rows of a resting stack
+  // or a limit pressed by a chain converge within this many.
+  static constexpr int kDirectSweeps = 200;
 
   // Velocity sweeps per (sub-)step: the upper bound when a tolerance or a
   // time budget is set too.
@@ -73,6 +76,21 @@ struct SolverSettings {
   static SolverSettings paper(int iterations) {
     SolverSettings s;
     s.iterations = iterations;
+    return s;
+  }
+  // ODE's dWorldStep counterpart: one step with each row's own ERP and
+  // CFM (as ODE builds them), every island's joint equality rows solved
+  // exactly as one block (up to kIslandBlockRows rows; larger islands keep
+  // per-joint blocks), and the bounded rows (limits, motors, contacts,
+  // friction) swept until every residual is below 1e-9 m/s or maxSweeps.
+  // ODE's own tests and demos that call dWorldStep expect its answers: a
+  // motor with infinite force at its target within the step, joints that
+  // hold to a micrometre, a star of ball joints turning as one body.
+  static SolverSettings direct(int maxSweeps = kDirectSweeps) {
+    SolverSettings s;
+    s.iterations = maxSweeps;
+    s.tolerance = 1e-9;
+    s.islandBlockRows = kIslandBlockRows;
     return s;
   }
   // Sub-stepping: n sub-steps of one block sweep and one relax sweep each,
