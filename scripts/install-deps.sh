@@ -5,10 +5,36 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake pkg-config clang-format
+  build-essential cmake pkg-config clang-format dpkg-dev
   libeigen3-dev libccd-dev libode-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )
+
+# ODE's own unit tests and demos (tests/ode_compat) are built from ODE's
+# source, fetched with `apt-get source ode`: that needs Debian's source
+# index. The entry mirrors the machine's own binary one.
+source_list=/etc/apt/sources.list.d/blockstep-deb-src.sources
+need_update=0
+if ! grep -rqs "^Types:.*deb-src\|^deb-src" /etc/apt/sources.list /etc/apt/sources.list.d/; then
+  if [ "$(id -u)" -ne 0 ]; then
+    echo "install-deps: Debian's source index (deb-src) is not enabled; run as root" >&2
+    exit 1
+  fi
+  binary_list=/etc/apt/sources.list.d/debian.sources
+  if [ -f "$binary_list" ]; then
+    sed 's/^Types: deb$/Types: deb-src/' "$binary_list" > "$source_list"
+  else
+    cat > "$source_list" <<'SOURCES'
+Types: deb-src
+URIs: http://deb.debian.org/debian
+Suites: bookworm bookworm-updates
+Components: main
+Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
+SOURCES
+  fi
+  echo "install-deps: enabled Debian's source index in $source_list"
+  need_update=1
+fi
 
 missing=()
 for p in "${packages[@]}"; do
@@ -18,6 +44,9 @@ for p in "${packages[@]}"; do
 done
 
 if [ ${#missing[@]} -eq 0 ]; then
+  if [ "$need_update" -eq 1 ]; then
+    apt-get update -qq
+  fi
   echo "install-deps: all ${#packages[@]} packages present"
   exit 0
 fi
