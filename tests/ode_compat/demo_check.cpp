@@ -51,6 +51,7 @@ struct Options {
   double runaway = 1e3;   // m beyond plain ODE's farthest object
   std::string differs;    // measured reason blockstep differs on purpose (README)
   std::string unmatched;  // why the end state is not matched yet: sanity only
+  std::string chaotic;    // known chaotic (measured): sanity only
   std::vector<std::pair<std::string, double>> ignored;  // drawn markers, not bodies
 };
 
@@ -59,7 +60,7 @@ struct Options {
                "demo_check: %s\nusage: demo_check --demo PATH --name NAME --plugin SO --shim SO "
                "--workdir DIR [--mode end-state|joints|inertia] [--frames N] [--keys K] "
                "[--arg A]... [--floor M] [--ignore KIND[:SIZE]]... [--differs REASON] "
-               "[--unmatched REASON]\n",
+               "[--unmatched REASON] [--chaotic REASON]\n",
                why.c_str());
   std::exit(2);
 }
@@ -94,6 +95,8 @@ Options parse(int argc, char** argv) {
       o.differs = value;
     else if (flag == "--unmatched")
       o.unmatched = value;
+    else if (flag == "--chaotic")
+      o.chaotic = value;
     else if (flag == "--ignore") {
       // kind or kind:size (contact markers a demo draws vary in number)
       const std::size_t colon = value.find(':');
@@ -301,7 +304,9 @@ int checkEndState(const Options& o) {
   // A demo is chaotic when a 1e-9 change of the step (or nothing at all)
   // moves its end state more than the floor: then no end state can be
   // matched, only sanity.
-  const bool chaotic = dPerturbed > o.floor;
+  // Piles of dropped objects are chaotic, but a single rerun may happen
+  // not to show it: those are marked, with the spread measured.
+  const bool chaotic = dPerturbed > o.floor || !o.chaotic.empty();
   const double allowed = std::max(std::isfinite(dSteppers) ? dSteppers : 0.0, o.floor);
   char text[400];
   std::snprintf(text, sizeof text,
