@@ -1,13 +1,17 @@
 // The plugin's C API (blockstep_ode.h) and its configuration from the
 // BLOCKSTEP_* environment variables.
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdarg>
 #include <cstring>
 #include <string>
 #include <vector>
 
+#include <algorithm>
 #include "adapters/ode/registry.h"
 #include "adapters/ode/world_bridge.h"
+
 #include "blockstep/blockstep_ode.h"
 #include "plugin/plugin_state.h"
 
@@ -28,6 +32,8 @@ struct Config {
 // What the API remembers of a world besides its bridge.
 struct WorldState {
   int stepper = dBlockStepperNone;
+  int handedToOde = 0;       // bodies of runaway islands ODE stepped in the last step
+  bool saidRunaway = false;  // the runaway message is printed once per world
   std::string message;
   std::vector<std::string> said;  // messages already printed for this world
 };
@@ -144,6 +150,18 @@ void readEnvironment() {
     s.solver.timeBudget = x;
     explicitly();
   }
+  if (const char* v = std::getenv("BLOCKSTEP_ISLAND_BLOCK_ROWS");
+      v && parseInt("BLOCKSTEP_ISLAND_BLOCK_ROWS", v, 0, n)) {
+    s.islandBlockRows = n;
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_RUNAWAY_GAIN");
+      v && parseReal("BLOCKSTEP_RUNAWAY_GAIN", v, x)) {
+    s.runawayEnergyGain = x;
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_RUNAWAY_SPEED");
+      v && parseReal("BLOCKSTEP_RUNAWAY_SPEED", v, x)) {
+    s.runawaySpeed = x > 0.0 ? x : kInf;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_MODE")) {
     if (!std::strcmp(v, "block"))
       s.solver.blockMode = BlockMode::Block;
@@ -218,6 +236,38 @@ void say(const char* format, ...) {
   std::fprintf(stderr, "blockstep: %s\n", text);
 }
 
+namespace {
+
+// A body ODE's stepper must leave alone while it steps the islands
+// blockstep handed back.
+struct HeldBody {
+  dBodyID body;
+  dVector3 position, linear, angular;
+  dQuaternion orientation;
+};
+
+// Steps only the handed-back islands with ODE's stepper: every other
+// enabled body is disabled for the call (ODE steps enabled islands only)
+// and enabled again after; one ODE joined to a stepped island anyway is
+// put back as blockstep left it.
+int stepWithOde(dWorldID w, dReal h, int (*odeStep)(dWorldID, dReal), std::vector<HeldBody>& held) {
+  for (const HeldBody& k : held)
+    dBodyDisable(k.body);
+  const int result = odeStep(w, h);
+  for (const HeldBody& k : held) {
+    if (dBodyIsEnabled(k.body)) {
+      dBodySetPosition(k.body, k.position[0], k.position[1], k.position[2]);
+      dBodySetQuaternion(k.body, k.orientation);
+      dBodySetLinearVel(k.body, k.linear[0], k.linear[1], k.linear[2]);
+      dBodySetAngularVel(k.body, k.angular[0], k.angular[1], k.angular[2]);
+    }
+    dBodyEnable(k.body);
+  }
+  return result;
+}
+
+}  // namespace
+
 int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeStepper stepper) {
   if (!w) {
     say("dWorldBlockStep: null world");
@@ -229,6 +279,7 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeSte
   WorldState& state = worldStates()[w];
   const StepOutcome outcome = bridge.step(*registry.world(w), h, stepper);
   state.message = bridge.message();
+  state.handedToOde = 0;
   switch (outcome) {
     case StepOutcome::Stepped: {
       state.stepper = dBlockStepperBlockstep;
@@ -236,7 +287,36 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeSte
       // ODE, even destroy bodies: each is looked up again before its call).
       static thread_local std::vector<dBodyID> moved;
       moved = bridge.movedWithCallback();
+      // Islands the runaway guard put back go to ODE's own stepper.
+      static thread_local std::vector<dBodyID> runaway;
+      static thread_local std::vector<HeldBody> held;
+      runaway = bridge.runawayBodies();
+      held.clear();
+      if (!runaway.empty()) {
+        std::sort(runaway.begin(), runaway.end());
+        for (dBodyID b : registry.world(w)->bodies) {
+          if (!dBodyIsEnabled(b) || std::binary_search(runaway.begin(), runaway.end(), b)) continue;
+          HeldBody k{b, {}, {}, {}, {}};
+          for (int i = 0; i < 3; ++i) {
+            k.position[i] = dBodyGetPosition(b)[i];
+            k.linear[i] = dBodyGetLinearVel(b)[i];
+            k.angular[i] = dBodyGetAngularVel(b)[i];
+          }
+          for (int i = 0; i < 4; ++i)
+            k.orientation[i] = dBodyGetQuaternion(b)[i];
+          held.push_back(k);
+        }
+        state.handedToOde = static_cast<int>(runaway.size());
+        if (!state.saidRunaway) {
+          state.saidRunaway = true;
+          say("world %p: %s; put back as before the step and stepped by ODE's %s instead (said "
+              "once per world; dBlockStepStats.handedToOde counts such bodies per step)",
+              static_cast<void*>(w), bridge.message().c_str(),
+              stepper == ode::OdeStepper::Step ? "dWorldStep" : "dWorldQuickStep");
+        }
+      }
       lock.unlock();
+      if (!runaway.empty()) stepWithOde(w, h, fallback, held);
       for (dBodyID b : moved) {
         if (const ode::MovedCallback callback = registry.movedCallback(b)) callback(b);
       }
@@ -310,6 +390,32 @@ void dWorldSetBlockRelaxIterations(dWorldID w, int n) {
 int dWorldGetBlockRelaxIterations(dWorldID w) {
   return currentSettings(w).relaxIterations;
 }
+void dWorldSetBlockIslandBlockRows(dWorldID w, int rows) {
+  if (rows < 0 || rows > 4096) {
+    say("dWorldSetBlockIslandBlockRows(%d): expected 0 (off) to 4096 rows; call ignored", rows);
+    return;
+  }
+  bridgeFor(w).settings().islandBlockRows = rows;
+}
+int dWorldGetBlockIslandBlockRows(dWorldID w) {
+  const BridgeSettings& s = bridgeFor(w).settings();
+  return s.islandBlockRows ? *s.islandBlockRows : currentSettings(w).islandBlockRows;
+}
+void dWorldSetBlockRunawayLimits(dWorldID w, dReal energyGain, dReal maxSpeed) {
+  if (std::isnan(energyGain) || std::isnan(maxSpeed)) {
+    say("dWorldSetBlockRunawayLimits(%g, %g): NaN limit; call ignored", double(energyGain),
+        double(maxSpeed));
+    return;
+  }
+  BridgeSettings& s = bridgeFor(w).settings();
+  s.runawayEnergyGain = energyGain > 0 ? energyGain : 0.0;
+  s.runawaySpeed = maxSpeed > 0 ? maxSpeed : kInf;
+}
+void dWorldGetBlockRunawayLimits(dWorldID w, dReal* energyGain, dReal* maxSpeed) {
+  const BridgeSettings& s = bridgeFor(w).settings();
+  if (energyGain) *energyGain = s.runawayEnergyGain;
+  if (maxSpeed) *maxSpeed = s.runawaySpeed;
+}
 void dWorldSetBlockTolerance(dWorldID w, dReal t) {
   explicitSettings(w).tolerance = t > 0 && t < dInfinity ? t : 0;
 }
@@ -355,6 +461,7 @@ int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* out) {
     out->residualCount = static_cast<int>(s.residuals.size());
     out->solveSeconds = s.solveSeconds;
     out->stepSeconds = s.stepSeconds;
+    out->handedToOde = state->handedToOde;
   }
   return 1;
 }

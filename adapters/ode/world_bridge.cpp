@@ -28,6 +28,13 @@ std::string bodyLabel(dBodyID b) {
   return text;
 }
 
+std::string jointLabel(dJointID j) {
+  char text[96];
+  std::snprintf(text, sizeof text, "%s joint %p", j ? odeJointTypeName(dJointGetType(j)) : "a",
+                static_cast<void*>(j));
+  return text;
+}
+
 // A vector in the frame of `body` (the world frame for 0).
 Vec3 inBodyFrame(dBodyID body, const Vec3& v, bool point) {
   if (!body) return v;
@@ -70,11 +77,17 @@ Softness WorldBridge::contactSoftness(double erp, double cfm) const {
 }
 
 SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
+  SolverSettings s = settings_.solver;
   if (settings_.followQuickStepIterations) {
-    if (stepper == OdeStepper::Step) return SolverSettings::direct();
-    return BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(world_));
+    s = stepper == OdeStepper::Step
+            ? SolverSettings::direct()
+            : BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(world_));
   }
-  return settings_.solver;
+  // Set apart from the solver: they hold whichever solver the step uses.
+  if (settings_.islandBlockRows) s.islandBlockRows = *settings_.islandBlockRows;
+  s.runawayEnergyGain = settings_.runawayEnergyGain;
+  s.runawaySpeed = settings_.runawaySpeed;
+  return s;
 }
 
 WorldBridge::MappedBody& WorldBridge::mapBody(dBodyID body) {
@@ -146,6 +159,7 @@ StepOutcome WorldBridge::step(const WorldRecord& record, double h, OdeStepper st
     message_ = e.what();
     return StepOutcome::Invalid;
   }
+  handBackRunaways(record);
   writeBack(record);
   writeFeedback(record);
   writeContactFeedback();
@@ -448,10 +462,130 @@ void WorldBridge::syncJoints(const WorldRecord& record) {
 
 // ODE's dxStepBody damping (util.cpp): after the position update, a
 // velocity above its threshold is scaled by (1 - scale).
+// The islands the core's runaway guard put back, and those holding a
+// body it caught within the last kHoldSteps steps: their ODE bodies keep
+// the state (and the accumulated forces) they had before the step, for
+// the caller to step them with ODE's stepper (a diverging island caught
+// and handed back for one step diverged again at once: demo_I's star
+// reached 3e10 rad/s so). The message names the newly caught ones.
+void WorldBridge::handBackRunaways(const WorldRecord& record) {
+  runawayBodies_.clear();
+  const StepStats& stats = core_.lastStepStats();
+  bool holding = false;
+  for (dBodyID b : record.bodies) {
+    int& held = mapBody(b).heldSteps;
+    if (held > 0) {
+      --held;
+      holding = true;
+    }
+  }
+  if (stats.runaways.empty() && !holding) return;
+  const std::size_t capacity = core_.bodyCapacity();
+  handedBack_.assign(capacity, 0);
+  for (BodyId id : stats.runawayBodies) {
+    handedBack_[id] = 1;
+  }
+  if (holding) {
+    // Whole islands as ODE makes them: bodies joined by enabled joints.
+    islandParent_.resize(capacity);
+    for (std::size_t i = 0; i < capacity; ++i)
+      islandParent_[i] = static_cast<BodyId>(i);
+    auto find = [&](BodyId x) {
+      while (islandParent_[x] != x)
+        x = islandParent_[x] = islandParent_[islandParent_[x]];
+      return x;
+    };
+    for (dJointID j : record.joints) {
+      const dBodyID b1 = dJointGetBody(j, 0), b2 = dJointGetBody(j, 1);
+      if (!b1 || !b2 || !dJointIsEnabled(j)) continue;
+      islandParent_[find(mapBody(b1).id)] = find(mapBody(b2).id);
+    }
+    for (dBodyID b : record.bodies) {
+      const MappedBody& m = mapBody(b);
+      if (m.heldSteps > 0) handedBack_[find(m.id)] = 2;
+    }
+    for (dBodyID b : record.bodies) {
+      const BodyId id = mapBody(b).id;
+      if (handedBack_[find(id)] == 2) handedBack_[id] = 1;
+    }
+    for (std::size_t i = 0; i < capacity; ++i)
+      handedBack_[i] = handedBack_[i] != 0;  // roots marked 2 above
+  }
+  heldIds_.clear();
+  for (BodyId id : stats.runawayBodies)
+    handedBack_[id] = 3;  // newly caught
+  for (dBodyID b : record.bodies) {
+    MappedBody& m = mapBody(b);
+    if (!handedBack_[m.id]) continue;
+    runawayBodies_.push_back(b);
+    heldIds_.push_back(m.id);
+    if (handedBack_[m.id] == 3) m.heldSteps = kHoldSteps;
+  }
+  core_.discardStepOf(heldIds_);
+  if (stats.runaways.empty()) return;
+  char text[256];
+  for (const RunawayIsland& r : stats.runaways) {
+    if (!message_.empty()) message_ += "; ";
+    const dBodyID culprit = r.culprit >= 0 ? odeBody(record, r.culprit) : nullptr;
+    if (r.nonFinite) {
+      std::snprintf(text, sizeof text, "an island went non-finite (first at %s)",
+                    bodyLabel(culprit).c_str());
+    } else if (r.fastest > core_.settings().runawaySpeed) {
+      std::snprintf(text, sizeof text,
+                    "an island ran away: %s reached %.3g m/s, over the runaway speed %.3g m/s",
+                    bodyLabel(culprit).c_str(), r.fastest, core_.settings().runawaySpeed);
+    } else {
+      std::snprintf(text, sizeof text,
+                    "an island ran away: its kinetic energy reached %.3g J where its forces, "
+                    "motors and corrections explain %.3g J (%.3gx beyond, over the last steps; "
+                    "most gained by %s)",
+                    r.energyAfter, r.energyExplained, r.growth, bodyLabel(culprit).c_str());
+    }
+    message_ += text;
+    message_ += "; its bodies:";
+    constexpr int kNamed = 8;  // the rest are counted
+    for (int k = 0; k < r.bodyCount; ++k) {
+      if (k == kNamed) {
+        message_ += " and " + std::to_string(r.bodyCount - kNamed) + " more";
+        break;
+      }
+      message_ += " " + bodyLabel(odeBody(record, stats.runawayBodies[r.firstBody + k]));
+    }
+    message_ += "; its joints:";
+    if (r.jointCount == 0) message_ += " none";
+    for (int k = 0; k < r.jointCount; ++k) {
+      if (k == kNamed) {
+        message_ += " and " + std::to_string(r.jointCount - kNamed) + " more";
+        break;
+      }
+      message_ += " " + jointLabel(odeJoint(record, stats.runawayJoints[r.firstJoint + k]));
+    }
+  }
+}
+
+dBodyID WorldBridge::odeBody(const WorldRecord& record, BodyId id) {
+  for (dBodyID b : record.bodies) {
+    if (mapBody(b).id == id) return b;
+  }
+  return nullptr;
+}
+
+dJointID WorldBridge::odeJoint(const WorldRecord& record, JointId id) const {
+  for (dJointID j : record.joints) {
+    const MappedJoint* m = joints_.find(j);
+    if (m && m->id == id) return j;
+  }
+  return nullptr;
+}
+
+bool WorldBridge::handedBack(dBodyID b) {
+  return b && !runawayBodies_.empty() && handedBack_[mapBody(b).id] != 0;
+}
+
 void WorldBridge::writeBack(const WorldRecord& record) {
   movedWithCallback_.clear();
   for (dBodyID b : record.bodies) {
-    if (!dBodyIsEnabled(b)) continue;
+    if (!dBodyIsEnabled(b) || handedBack(b)) continue;
     if (Registry::instance().movedCallback(b)) movedWithCallback_.push_back(b);
     const Body& body = core_.body(mapBody(b).id);
     Vec3 v = body.linearVelocity, w = body.angularVelocity;
@@ -483,7 +617,7 @@ void WorldBridge::writeBack(const WorldRecord& record) {
 void WorldBridge::writeFeedback(const WorldRecord& record) {
   for (dJointID j : record.joints) {
     dJointFeedback* out = dJointGetFeedback(j);
-    if (!out) continue;
+    if (!out || handedBack(dJointGetBody(j, 0)) || handedBack(dJointGetBody(j, 1))) continue;
     const MappedJoint* m = joints_.find(j);
     JointFeedback fb;
     if (m && m->id >= 0) fb = core_.jointFeedback(m->id);
@@ -514,6 +648,7 @@ void WorldBridge::writeFeedback(const WorldRecord& record) {
 void WorldBridge::writeContactFeedback() {
   const std::vector<ContactManifold>& solved = core_.contacts();
   for (const ContactFeedback& c : contactFeedback_) {
+    if (handedBack(c.body1) || handedBack(c.body2)) continue;
     Vec3 onBody1 = Vec3::Zero();
     for (const ContactManifold& m : solved) {
       const bool same = m.bodyB == c.core1 && m.bodyA == c.core2;

@@ -24,6 +24,7 @@
 
 #include <ode/ode.h>
 
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -50,6 +51,13 @@ struct BridgeSettings {
   bool followQuickStepIterations = true;
   SolverSettings solver = SolverSettings::subStepped(10);
 
+  // Whatever the solver above (followed or explicit): island blocks up to
+  // this many rows (unset: the solver's own choice), and the runaway
+  // guard's limits (SolverSettings::runawayEnergyGain, runawaySpeed).
+  std::optional<int> islandBlockRows;
+  double runawayEnergyGain = SolverSettings{}.runawayEnergyGain;
+  double runawaySpeed = SolverSettings{}.runawaySpeed;
+
   static SolverSettings fromQuickStepIterations(int iterations);
 };
 
@@ -64,7 +72,7 @@ class WorldBridge {
   explicit WorldBridge(dWorldID world);
 
   StepOutcome step(const WorldRecord& record, double h, OdeStepper stepper = OdeStepper::QuickStep);
-  // Why the last step was not Stepped.
+  // Why the last step was not Stepped, or which islands it handed back.
   const std::string& message() const { return message_; }
 
   // Called by the registry when ODE destroys these.
@@ -79,6 +87,11 @@ class WorldBridge {
   // caller calls them once the step is over (ODE calls them as it moves
   // each body, after the solve).
   const std::vector<dBodyID>& movedWithCallback() const { return movedWithCallback_; }
+
+  // The bodies of the islands the last step handed back (the runaway
+  // guard caught them: message() says why): they are as they were before
+  // the step, forces kept, for the caller to step with ODE's stepper.
+  const std::vector<dBodyID>& runawayBodies() const { return runawayBodies_; }
 
   BridgeSettings& settings() { return settings_; }
   const StepStats& stats() const { return core_.lastStepStats(); }
@@ -101,6 +114,7 @@ class WorldBridge {
   };
   struct MappedBody {
     BodyId id = -1;
+    int heldSteps = 0;  // ODE steps its island for this many more steps (runaway)
     BodySleep sleep;
   };
   struct MappedJoint {
@@ -117,6 +131,10 @@ class WorldBridge {
   void wakeIslands(const WorldRecord& record);
   void syncBodies(const WorldRecord& record);
   void syncJoints(const WorldRecord& record);
+  void handBackRunaways(const WorldRecord& record);
+  bool handedBack(dBodyID body);
+  dBodyID odeBody(const WorldRecord& record, BodyId id);
+  dJointID odeJoint(const WorldRecord& record, JointId id) const;
   void writeBack(const WorldRecord& record);
   void writeFeedback(const WorldRecord& record);
   void writeContactFeedback();
@@ -146,6 +164,12 @@ class WorldBridge {
   };
   std::vector<ContactFeedback> contactFeedback_;
   std::vector<dBodyID> movedWithCallback_;
+  std::vector<dBodyID> runawayBodies_;
+  std::vector<std::uint8_t> handedBack_;  // by core body: in runawayBodies_
+  std::vector<BodyId> heldIds_, islandParent_;
+  // Steps a caught island stays with ODE's stepper before blockstep tries
+  // it again: a second at 60 Hz.
+  static constexpr int kHoldSteps = 60;
   WorldContactParams contactParams_;
   double step_ = 0.0;
   std::string message_;

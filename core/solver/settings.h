@@ -67,6 +67,17 @@ struct SolverSettings {
   // Gyroscopic term w x (I w), integrated implicitly (off by default, as
   // section 4.1 suggests).
   bool gyroscopic = false;
+  // The runaway guard (runaway_guard.h): an island whose kinetic energy
+  // grew beyond what its forces, motors, kinematic bodies and position
+  // corrections can give by more than this factor (growth carried from
+  // step to step, 0.9 of the last step's as a logarithm: growth that goes
+  // on, as a divergence does),
+  // or in which a body goes faster than runawaySpeed (m/s), or whose state
+  // is not finite, is put back as it was before the step and reported in
+  // StepStats. 0 (or infinity): that test off; non-finite states are
+  // always caught.
+  double runawayEnergyGain = 100.0;
+  double runawaySpeed = kInf;
   // Record the residual after every sweep (costs one extra pass over the
   // rows per sweep; on automatically while a tolerance is set).
   bool recordResiduals = false;
@@ -117,6 +128,20 @@ struct ResidualSample {
   double rms = 0.0;
 };
 
+// An island the step left non-finite or running away (RunawayGuard): the
+// World put its bodies back as they were before the step.
+struct RunawayIsland {
+  BodyId culprit = -1;           // the non-finite body, or the one whose energy grew most
+  bool nonFinite = false;        // some body's state is not finite
+  double energyBefore = 0.0;     // kinetic energy before the step, J
+  double energyExplained = 0.0;  // what forces, motors and corrections can give, J
+  double energyAfter = 0.0;      // after the step (not finite: not summed), J
+  double fastest = 0.0;          // largest linear speed after the step, m/s
+  double growth = 0.0;           // unexplained energy growth, carried over steps
+  std::int32_t firstBody = 0, bodyCount = 0;    // into StepStats::runawayBodies
+  std::int32_t firstJoint = 0, jointCount = 0;  // into StepStats::runawayJoints
+};
+
 struct StepStats {
   int substeps = 0;
   int iterations = 0;  // velocity sweeps run, summed over sub-steps (relax excluded)
@@ -127,6 +152,11 @@ struct StepStats {
   double stepSeconds = 0.0;               // the whole step
   std::vector<ResidualSample> residuals;  // when recorded
   std::vector<JointId> brokenJoints;      // joints that broke in this step
+  // Islands the step left non-finite or running away, restored to before
+  // the step (their bodies did not move), and their bodies and joints.
+  std::vector<RunawayIsland> runaways;
+  std::vector<BodyId> runawayBodies;
+  std::vector<JointId> runawayJoints;
 };
 
 }  // namespace blockstep

@@ -60,6 +60,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   stats.solveSeconds = 0.0;
 
   buildIslands(in);
+  guard_.begin(in.bodies, groupOfBody_, groupCount_, in.gravity, in.h);
   for (Joint& j : in.joints)
     j.stepImpulse.fill(0.0);
   for (ContactManifold& m : in.contacts) {
@@ -73,6 +74,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     integrateVelocities(in, s, h);
     const auto solveStart = Clock::now();
     prepare(in, s, h);
+    if (sub == 0) guard_.addCorrections(blocks_, rows_, bodies_, islandStart_, islandCount_, in.h);
     warmStart();
     // Each sub-step gets its share of what remains of the time budget;
     // once it is spent (prepare alone can spend it) a sub-step still runs
@@ -84,10 +86,12 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     stats.iterations += solve(s, sub, subBudget, stats);
     integratePositions(in, s, h);
     relax(s, h);
+    guard_.addWork(blocks_, rows_, bodies_, islandStart_, islandCount_);
     storeImpulses(in, h);
     stats.solveSeconds += seconds(solveStart, Clock::now());
   }
   finish(in, stats);
+  guard_.check(in.bodies, blocks_, islandStart_, islandCount_, s, stats);
   stats.stepSeconds = seconds(start, Clock::now());
 }
 
@@ -163,6 +167,19 @@ void Solver::buildIslands(const StepInput& in) {
   }
   islandActive_.resize(islandCount_);
   islandBlocksSelected_ = false;
+
+  // The runaway guard's groups: the islands, then each dynamic body that
+  // is in none (it moves under its forces alone).
+  groupOfBody_.resize(bodyCount);
+  groupCount_ = islandCount_;
+  for (std::int32_t i = 0; i < bodyCount; ++i) {
+    if (!dynamicBody(i)) {
+      groupOfBody_[i] = -1;
+      continue;
+    }
+    const std::int32_t island = islandOfRoot_[find(i)];
+    groupOfBody_[i] = island >= 0 ? island : groupCount_++;
+  }
 }
 
 void Solver::integrateVelocities(const StepInput& in, const SolverSettings& s, double h) {

@@ -13,6 +13,7 @@
 #include "core/constraints/parts/row_writer.h"
 #include "core/constraints/row.h"
 #include "core/solver/island_block.h"
+#include "core/solver/runaway_guard.h"
 #include "core/solver/settings.h"
 #include "core/solver/solver_body.h"
 
@@ -119,6 +120,11 @@ class Solver {
   std::vector<std::uint8_t> islandActive_;
   std::vector<std::int32_t> active_;
   int islandCount_ = 0;
+  // The runaway guard's groups: each body's island, or a group of its own
+  // for a dynamic body in no island (-1: not dynamic).
+  std::vector<std::int32_t> groupOfBody_;
+  int groupCount_ = 0;
+  RunawayGuard guard_;
   int rowCount_ = 0;
   std::int32_t dummy_ = 0;
   double stepSize_ = 0.0;  // the whole step being taken (sub-steps divide it)

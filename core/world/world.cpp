@@ -422,6 +422,7 @@ void World::checkStateBeforeStep(double h) const {
 void World::step(double h) {
   checkStateBeforeStep(h);
   saved_.resize(bodies_.size());
+  restored_.resize(bodies_.size(), 0);
   for (std::size_t i = 0; i < bodies_.size(); ++i) {
     const Body& b = bodies_[i];
     saved_[i] = Saved{b.position, b.linearVelocity, b.angularVelocity, b.orientation};
@@ -441,28 +442,39 @@ void World::step(double h) {
               return bodyPairKey(x.bodyA, x.bodyB) < bodyPairKey(y.bodyA, y.bodyB);
             });
 
-  for (BodyId i = 0; i < static_cast<BodyId>(bodies_.size()); ++i) {
-    const Body& b = bodies_[i];
-    if (!b.alive) continue;
-    if (b.position.allFinite() && isFinite(b.orientation) && b.linearVelocity.allFinite() &&
-        b.angularVelocity.allFinite()) {
-      continue;
-    }
-    for (std::size_t k = 0; k < bodies_.size(); ++k) {
-      bodies_[k].position = saved_[k].x;
-      bodies_[k].orientation = saved_[k].q;
-      bodies_[k].linearVelocity = saved_[k].v;
-      bodies_[k].angularVelocity = saved_[k].w;
-    }
-    for (Joint& j : joints_)
-      j.warmSlots = 0;
-    contacts_.clear();
-    previousContacts_.clear();
-    lastStep_ = 0.0;
-    throw Error("the step produced a non-finite state at " + bodyName(i) +
-                "; the world was restored to before the step (check masses, inertia and joint "
-                "parameters)");
+  restoreRunaways();
+}
+
+void World::restoreRunaways() {
+  if (!stats_.runaways.empty()) discardStepOf(stats_.runawayBodies);
+}
+
+void World::discardStepOf(const std::vector<BodyId>& ids) {
+  if (ids.empty() || saved_.size() != bodies_.size()) return;
+  restored_.resize(bodies_.size(), 0);
+  for (BodyId id : ids) {
+    Body& b = bodies_[id];
+    b.position = saved_[id].x;
+    b.orientation = saved_[id].q;
+    b.linearVelocity = saved_[id].v;
+    b.angularVelocity = saved_[id].w;
+    restored_[id] = 1;
   }
+  auto restored = [&](BodyId id) { return id != kWorldBody && restored_[id]; };
+  for (Joint& j : joints_) {
+    const JointCommon& c = common(j.desc);
+    if (j.alive && (restored(c.bodyA) || restored(c.bodyB))) j.warmSlots = 0;
+  }
+  for (ContactManifold& m : previousContacts_) {
+    if (!restored(m.bodyA) && !restored(m.bodyB)) continue;
+    for (ContactPoint& p : m.points) {
+      p.normalImpulse = 0.0;
+      p.tangentImpulse[0] = p.tangentImpulse[1] = 0.0;
+    }
+    m.rollingImpulse[0] = m.rollingImpulse[1] = m.rollingImpulse[2] = 0.0;
+  }
+  for (BodyId id : ids)
+    restored_[id] = 0;
 }
 
 }  // namespace blockstep

@@ -38,6 +38,8 @@ class World {
   void destroyBody(BodyId id);  // destroys the joints attached to it too
   const Body& body(BodyId id) const;
   int bodyCount() const;  // live bodies
+  // One past the largest BodyId in use (ids of destroyed bodies are reused).
+  std::size_t bodyCapacity() const { return bodies_.size(); }
   void setPosition(BodyId id, const Vec3& position);
   void setOrientation(BodyId id, const Quat& orientation);  // normalized here
   void setLinearVelocity(BodyId id, const Vec3& v);
@@ -95,10 +97,19 @@ class World {
   void setSettings(const SolverSettings& s);
 
   // Advances the world by h seconds. Checks the world first (non-finite
-  // state, bad step size); if the step would produce a non-finite state
-  // it restores the world and throws.
+  // state, bad step size) and throws on bad input, leaving the world as it
+  // was. An island the step leaves non-finite or running away (energy far
+  // beyond what its forces, motors and corrections explain:
+  // SolverSettings::runawayEnergyGain, runawaySpeed) is put back as it was
+  // before the step, and lastStepStats().runaways names it; the other
+  // islands keep their step.
   void step(double h);
   const StepStats& lastStepStats() const { return stats_; }
+  // Puts these bodies back as they were before the last step and drops
+  // the impulses their joints and contacts would warm start from (the
+  // caller steps them another way: the ODE plugin hands runaway islands to
+  // ODE's stepper for a while).
+  void discardStepOf(const std::vector<BodyId>& ids);
   double lastStepSize() const { return lastStep_; }
 
  private:
@@ -110,6 +121,7 @@ class World {
   void checkStateBeforeStep(double h) const;
   void collide();
   void prepareContacts();
+  void restoreRunaways();
 
   struct Saved {
     Vec3 x, v, w;
@@ -121,6 +133,7 @@ class World {
   std::vector<BodyId> freeBodies_;
   std::vector<JointId> freeJoints_;
   std::vector<Saved> saved_;
+  std::vector<std::uint8_t> restored_;  // marks, while discardStepOf() runs
   std::vector<Shape> shapes_;
   std::vector<ContactManifold> contacts_;          // this step's
   std::vector<ContactManifold> previousContacts_;  // the last step's, sorted by body pair

@@ -1,6 +1,7 @@
 // The block solver itself: pendulum period, block vs row-by-row, LDL^T on
 // a singular K, heavy chains, stopping modes, residuals, islands, warm
 // starting, and bad input.
+#include <algorithm>
 #include <cmath>
 
 #include "compare/native/scenes.h"
@@ -377,6 +378,7 @@ double starAgainstRigidBody(SolverSettings settings) {
 TEST(Solver, IslandBlockTurnsALightAnchorWithHeavyParticlesAsOneBody) {
   SolverSettings perJoint = SolverSettings::subStepped(10);
   perJoint.islandBlockRows = 0;
+  perJoint.runawayEnergyGain = 0.0;  // the raw per-joint solve, not the guard
 
   const double island = starAgainstRigidBody(SolverSettings::subStepped(10));
   const double joints = starAgainstRigidBody(perJoint);
@@ -425,6 +427,87 @@ TEST(Solver, HeavyEndChainReleasedHorizontallyHolds) {
   // Free fall of the heavy end from 2 m of chain gives about 9 m/s; the
   // whip's light links go a little faster, nothing runs away.
   EXPECT_LT(fastest, 30.0);
+}
+
+// The runaway guard: per-joint blocks diverge on the star; the island is
+// put back as it was before the step that ran away, named, and the rest
+// of the world keeps its step.
+TEST(RunawayGuard, DivergingIslandIsPutBackAndNamed) {
+  World world;
+  world.setGravity(Vec3::Zero());
+  SolverSettings s = SolverSettings::subStepped(10);
+  s.islandBlockRows = 0;
+  s.gyroscopic = true;
+  world.setSettings(s);
+  const BodyId hub = world.createBody(boxBody(Vec3(0, 0, 1), 0.1, Vec3(0.15, 0.15, 0.15)));
+  std::vector<BodyId> star{hub};
+  for (int i = 0; i < 10; ++i) {
+    const Vec3 offset(0.3 * std::cos(1.7 * i), 0.3 * std::sin(2.3 * i), 0.25 * std::cos(0.9 * i));
+    star.push_back(world.createBody(test::sphereBody(Vec3(0, 0, 1) + offset, 0.1 + 0.1 * i, 0.05)));
+    BallJointDesc ball;
+    ball.common.bodyA = hub;
+    ball.common.bodyB = star.back();
+    ball.anchor = world.body(star.back()).position;
+    world.createJoint(ball);
+  }
+  // A body far away, falling on its own: its own group, never caught.
+  const BodyId faller = world.createBody(boxBody(Vec3(5, 0, 0), 1.0, Vec3(0.1, 0.1, 0.1)));
+  world.setLinearVelocity(faller, Vec3(0, 0, 1));
+
+  int caughtAt = -1;
+  double spinWhenCaught = 0.0;
+  for (int step = 0; step < 100 && caughtAt < 0; ++step) {
+    std::vector<Body> before;
+    for (BodyId b : star)
+      before.push_back(world.body(b));
+    const Vec3 fallerBefore = world.body(faller).position;
+    world.addTorque(hub, Vec3(0.03, -0.02, 0.045));
+    world.step(0.03);
+    EXPECT_NEAR((world.body(faller).position - fallerBefore).z(), 0.03, 1e-12)
+        << "an island that did not run away keeps its step";
+    const StepStats& stats = world.lastStepStats();
+    if (stats.runaways.empty()) continue;
+    caughtAt = step;
+    ASSERT_EQ(stats.runaways.size(), 1u);
+    const RunawayIsland& r = stats.runaways[0];
+    EXPECT_FALSE(r.nonFinite);
+    EXPECT_EQ(r.bodyCount, 11);
+    EXPECT_EQ(r.jointCount, 10);
+    EXPECT_GT(r.growth, 100.0);
+    EXPECT_GT(r.energyAfter, r.energyExplained);
+    EXPECT_NE(std::find(star.begin(), star.end(), r.culprit), star.end());
+    for (std::size_t k = 0; k < star.size(); ++k) {
+      EXPECT_EQ(world.body(star[k]).position, before[k].position);
+      EXPECT_EQ(world.body(star[k]).angularVelocity, before[k].angularVelocity);
+    }
+    spinWhenCaught = world.body(hub).angularVelocity.norm();
+  }
+  std::printf("per-joint star caught at step %d, anchor at %.3g rad/s\n", caughtAt, spinWhenCaught);
+  ASSERT_GE(caughtAt, 0) << "the per-joint star diverges: the guard must catch it";
+  // Caught early: the anchor turns at a few rad/s, not the 1e15 it reaches.
+  EXPECT_LT(spinWhenCaught, 10.0);
+}
+
+// A state that turns non-finite within the step (a finite torque too large
+// for the body) is caught whatever the limits, the island put back.
+TEST(RunawayGuard, NonFiniteStateIsPutBackAndNamed) {
+  World world;
+  SolverSettings s = SolverSettings::paper(10);
+  s.runawayEnergyGain = 0.0;  // off: non-finite states are caught anyway
+  world.setSettings(s);
+  const BodyId spun = world.createBody(boxBody(Vec3(0, 0, 1), 1e-3, Vec3(0.01, 0.01, 0.01)));
+  const BodyId other = world.createBody(boxBody(Vec3(3, 0, 1), 1.0, Vec3(0.1, 0.1, 0.1)));
+  world.addTorque(spun, Vec3(1e305, 0, 0));
+  world.step(1.0 / 60.0);
+  const StepStats& stats = world.lastStepStats();
+  ASSERT_EQ(stats.runaways.size(), 1u);
+  EXPECT_TRUE(stats.runaways[0].nonFinite);
+  EXPECT_EQ(stats.runaways[0].culprit, spun);
+  EXPECT_EQ(world.body(spun).position, Vec3(0, 0, 1));
+  EXPECT_TRUE(world.body(spun).angularVelocity.allFinite());
+  EXPECT_LT(world.body(other).position.z(), 1.0) << "the other body fell";
+  world.step(1.0 / 60.0);  // the torque was used up: a normal step
+  EXPECT_TRUE(world.lastStepStats().runaways.empty());
 }
 
 }  // namespace

@@ -53,6 +53,22 @@ enum { dBlockModeBlock = 0, dBlockModeRowByRow = 1 };
 ODE_API void dWorldSetBlockMode(dWorldID w, int mode);
 ODE_API int dWorldGetBlockMode(dWorldID w);
 ODE_API void dWorldSetBlockRecordResiduals(dWorldID w, int on);
+/* Solve an island's joint equality rows as one exact block when it has at
+ * most this many (0: one block per joint). Holds under every solver;
+ * the default is the solver's own (192 rows sub-stepped and for
+ * dWorldStep, 0 in the paper preset). BLOCKSTEP_ISLAND_BLOCK_ROWS. */
+ODE_API void dWorldSetBlockIslandBlockRows(dWorldID w, int rows);
+ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
+/* The runaway guard: an island whose kinetic energy grows beyond what its
+ * forces, motors and position corrections explain by more than
+ * energyGain (default 100, growth carried over steps), or in which a body
+ * goes faster than maxSpeed m/s (default: no limit), or whose state turns
+ * non-finite, is put back as it was before the step and stepped by ODE's
+ * own stepper instead; said once on stderr naming its bodies and joints.
+ * 0 turns a limit off (non-finite states are always caught).
+ * BLOCKSTEP_RUNAWAY_GAIN, BLOCKSTEP_RUNAWAY_SPEED. */
+ODE_API void dWorldSetBlockRunawayLimits(dWorldID w, dReal energyGain, dReal maxSpeed);
+ODE_API void dWorldGetBlockRunawayLimits(dWorldID w, dReal* energyGain, dReal* maxSpeed);
 
 /* What the last dWorldBlockStep (or replaced step) of w did. */
 enum {
@@ -70,6 +86,11 @@ typedef struct dBlockStepStats {
   int residualCount; /* entries in the residual history */
   double solveSeconds;
   double stepSeconds;
+  /* Bodies of islands the runaway guard caught in this step (non-finite,
+   * or kinetic energy far beyond what forces, motors and corrections
+   * explain: dWorldSetBlockRunawayLimits): put back as they were before
+   * the step and stepped by ODE's own stepper instead. */
+  int handedToOde;
 } dBlockStepStats;
 /* Returns 1 and fills stats, 0 for a world blockstep has not seen. */
 ODE_API int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* stats);

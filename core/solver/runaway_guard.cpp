@@ -1,0 +1,232 @@
+#include "core/solver/runaway_guard.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace blockstep {
+namespace {
+
+// Kinetic energy below that of every body moving at this speed is noise.
+constexpr double kQuietSpeed = 0.01;  // m/s
+// Each step's unexplained growth (a log of an energy ratio) carries this
+// much of the last step's, so what counts is growth that goes on: sweeps
+// diverging at 3-5x per step (demo_I's star on per-joint blocks) pass a
+// gain of 100 within five or six steps. A structure springing back from
+// errors coupled beyond their diagonals does not go on: a taut hinge
+// bridge struck by a weight gained 30x in one step (ODE's demo_feedback),
+// a per-joint 100:1 chain recoiling from its stretch 1.3-1.8x per step
+// for 15 steps (about 55 carried).
+constexpr double kCarry = 0.9;
+
+// Kinetic energy of a body moving at (v, w) in its current orientation.
+double energyAt(const Body& b, const Vec3& v, const Vec3& w) {
+  const Vec3 wb = b.orientation.conjugate() * w;
+  return 0.5 * b.mass * v.squaredNorm() + 0.5 * wb.dot(b.inertiaBody * wb);
+}
+
+bool finiteState(const Body& b) {
+  return b.position.allFinite() && b.orientation.coeffs().allFinite() &&
+         b.linearVelocity.allFinite() && b.angularVelocity.allFinite();
+}
+
+// The velocity a row sees from a body that does not move under impulses
+// (a kinematic body, the world: zero).
+double drivenBy(const ConstraintRow& row, const SolverBody& a, const SolverBody& b) {
+  double d = 0.0;
+  if (a.invMass == 0.0) d += row.linA.dot(a.v) + row.angA.dot(a.w);
+  if (b.invMass == 0.0) d += row.linB.dot(b.v) + row.angB.dot(b.w);
+  return d;
+}
+
+// The speed, along the row, that closes the error the row started the
+// step with within the whole step h: a joint's error, a contact's or a
+// stop's penetration (capped as the row caps its push-out).
+double closingSpeed(const ConstraintRow& row, double h) {
+  switch (row.biasKind) {
+    case RowBias::Velocity:
+      return 0.0;
+    case RowBias::Speculative: {
+      const double push = std::max(0.0, -(row.C + row.slop)) / h;
+      return std::min(push, row.maxBias);
+    }
+    case RowBias::Baumgarte:
+      break;
+  }
+  return -row.C / h;
+}
+
+}  // namespace
+
+double kineticEnergy(const Body& b) {
+  return energyAt(b, b.linearVelocity, b.angularVelocity);
+}
+
+void RunawayGuard::begin(const std::vector<Body>& bodies,
+                         const std::vector<std::int32_t>& groupOfBody, int groups,
+                         const Vec3& gravity, double h) {
+  groupOfBody_ = &groupOfBody;
+  h_ = h;
+  groups_.assign(static_cast<std::size_t>(groups), Group{});
+  start_.resize(bodies.size());
+  growth_.resize(bodies.size(), 0.0);
+  for (std::size_t i = 0; i < bodies.size(); ++i) {
+    const std::int32_t g = groupOfBody[i];
+    if (g < 0) continue;
+    const Body& b = bodies[i];
+    BodyStart& start = start_[i];
+    start.energy = kineticEnergy(b);
+    start.position = b.position;
+    start.angularVelocity = b.angularVelocity;
+    start.force = b.gravity ? Vec3(b.force + b.mass * gravity) : b.force;
+    start.torque = b.torque;
+    // What the forces alone would give over the step, from rest as much as
+    // along the path: a body resting on a contact keeps some of the
+    // velocity gravity gave it within the step.
+    start.freeGain = energyAt(b, b.linearVelocity + h * b.invMass * start.force,
+                              b.angularVelocity + h * (b.invInertiaWorld() * b.torque)) -
+                     start.energy;
+    Group& group = groups_[g];
+    group.before += start.energy;
+    group.explained += start.energy;
+    group.mass += b.mass;
+  }
+}
+
+void RunawayGuard::addCorrections(const std::vector<ConstraintBlock>& blocks,
+                                  const std::vector<ConstraintRow>& rows,
+                                  const std::vector<SolverBody>& bodies,
+                                  const std::vector<std::int32_t>& groupStart, int islandCount,
+                                  double h) {
+  for (int g = 0; g < islandCount; ++g) {
+    double energy = 0.0;
+    for (std::int32_t bi = groupStart[g]; bi < groupStart[g + 1]; ++bi) {
+      const ConstraintBlock& blk = blocks[bi];
+      const SolverBody& a = bodies[blk.bodyA];
+      const SolverBody& b = bodies[blk.bodyB];
+      for (int r = blk.firstRow; r < blk.firstRow + blk.rowCount(); ++r) {
+        const ConstraintRow& row = rows[r];
+        const double d = closingSpeed(row, h);
+        const double k = a.invMass * row.linA.squaredNorm() + row.angA.dot(row.invIangA) +
+                         b.invMass * row.linB.squaredNorm() + row.angB.dot(row.invIangB);
+        if (d != 0.0 && k > 0.0) energy += 0.5 * d * d / k;
+      }
+    }
+    groups_[g].explained += energy;
+  }
+}
+
+void RunawayGuard::addWork(const std::vector<ConstraintBlock>& blocks,
+                           const std::vector<ConstraintRow>& rows,
+                           const std::vector<SolverBody>& bodies,
+                           const std::vector<std::int32_t>& groupStart, int islandCount) {
+  for (int g = 0; g < islandCount; ++g) {
+    double work = 0.0;
+    for (std::int32_t bi = groupStart[g]; bi < groupStart[g + 1]; ++bi) {
+      const ConstraintBlock& blk = blocks[bi];
+      const SolverBody& a = bodies[blk.bodyA];
+      const SolverBody& b = bodies[blk.bodyB];
+      for (int r = blk.firstRow; r < blk.firstRow + blk.rowCount(); ++r) {
+        const ConstraintRow& row = rows[r];
+        const double d = std::abs(row.target) + std::abs(drivenBy(row, a, b));
+        work += std::abs(row.impulse) * d;
+      }
+    }
+    groups_[g].explained += work;
+  }
+}
+
+void RunawayGuard::check(const std::vector<Body>& bodies,
+                         const std::vector<ConstraintBlock>& blocks,
+                         const std::vector<std::int32_t>& groupStart, int islandCount,
+                         const SolverSettings& s, StepStats& stats) {
+  stats.runaways.clear();
+  stats.runawayBodies.clear();
+  stats.runawayJoints.clear();
+  if (!groupOfBody_) return;
+  const std::vector<std::int32_t>& groupOf = *groupOfBody_;
+  for (Group& group : groups_) {
+    group.after = 0.0;
+    group.fastest = 0.0;
+    group.nonFinite = false;
+    group.culprit = -1;
+    group.culpritGain = -kInf;
+  }
+  for (std::size_t i = 0; i < bodies.size(); ++i) {
+    const std::int32_t g = groupOf[i];
+    if (g < 0) continue;
+    const Body& b = bodies[i];
+    Group& group = groups_[g];
+    if (group.nonFinite) continue;
+    if (!finiteState(b)) {
+      group.nonFinite = true;
+      group.culprit = static_cast<BodyId>(i);
+      continue;
+    }
+    const BodyStart& start = start_[i];
+    // The work of gravity and the applied force and torque, constant over
+    // the step, along the path the body took (a pendulum swinging down
+    // gains what gravity gives it whichever way its joint turned it), or
+    // what they give the free body, whichever is larger.
+    group.explained +=
+        std::max(start.freeGain,
+                 start.force.dot(b.position - start.position) +
+                     start.torque.dot(0.5 * h_ * (start.angularVelocity + b.angularVelocity)));
+    const double e = kineticEnergy(b);
+    group.after += e;
+    group.fastest = std::max(group.fastest, b.linearVelocity.norm());
+    if (e - start.energy > group.culpritGain) {
+      group.culpritGain = e - start.energy;
+      group.culprit = static_cast<BodyId>(i);
+    }
+  }
+  // Unexplained growth, carried from step to step on each body: one step
+  // far beyond what it explains, or a few in a row somewhat beyond it.
+  for (Group& group : groups_) {
+    // Below this the energy is noise: every body at 1 cm/s.
+    const double floor = 0.5 * group.mass * kQuietSpeed * kQuietSpeed;
+    group.excess = group.nonFinite
+                       ? kInf
+                       : std::log((group.after + floor) / (std::max(group.explained, 0.0) + floor));
+    group.growth = 0.0;
+  }
+  for (std::size_t i = 0; i < bodies.size(); ++i) {
+    const std::int32_t g = groupOf[i];
+    if (g < 0) continue;
+    Group& group = groups_[g];
+    double& growth = growth_[i];
+    growth = std::max(0.0, kCarry * growth + group.excess);
+    group.growth = std::max(group.growth, growth);
+  }
+  const double allowed = s.runawayEnergyGain > 0.0 ? std::log(s.runawayEnergyGain) : kInf;
+  for (int g = 0; g < static_cast<int>(groups_.size()); ++g) {
+    const Group& group = groups_[g];
+    const bool gained = group.growth > allowed;
+    const bool fast = group.fastest > s.runawaySpeed;
+    if (!group.nonFinite && !gained && !fast) continue;
+    RunawayIsland r;
+    r.culprit = group.culprit;
+    r.nonFinite = group.nonFinite;
+    r.energyBefore = group.before;
+    r.energyExplained = group.explained;
+    r.energyAfter = group.after;
+    r.fastest = group.fastest;
+    r.growth = std::exp(group.growth);
+    r.firstBody = static_cast<std::int32_t>(stats.runawayBodies.size());
+    for (std::size_t i = 0; i < bodies.size(); ++i) {
+      if (groupOf[i] != g) continue;
+      stats.runawayBodies.push_back(static_cast<BodyId>(i));
+      growth_[i] = 0.0;  // put back: it starts afresh
+    }
+    r.bodyCount = static_cast<std::int32_t>(stats.runawayBodies.size()) - r.firstBody;
+    r.firstJoint = static_cast<std::int32_t>(stats.runawayJoints.size());
+    if (g < islandCount) {
+      for (std::int32_t bi = groupStart[g]; bi < groupStart[g + 1]; ++bi) {
+        if (blocks[bi].joint >= 0) stats.runawayJoints.push_back(blocks[bi].joint);
+      }
+    }
+    r.jointCount = static_cast<std::int32_t>(stats.runawayJoints.size()) - r.firstJoint;
+    stats.runaways.push_back(r);
+  }
+}
+
+}  // namespace blockstep
