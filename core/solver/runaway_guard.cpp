@@ -197,7 +197,9 @@ void RunawayGuard::check(const std::vector<Body>& bodies,
     growth = std::max(0.0, kCarry * growth + group.excess);
     group.growth = std::max(group.growth, growth);
   }
-  const double allowed = s.runawayEnergyGain > 0.0 ? std::log(s.runawayEnergyGain) : kInf;
+  const double allowed = s.runawayEnergyGain > 0.0 && std::isfinite(s.runawayEnergyGain)
+                             ? std::log(s.runawayEnergyGain)
+                             : kInf;
   for (int g = 0; g < static_cast<int>(groups_.size()); ++g) {
     const Group& group = groups_[g];
     const bool gained = group.growth > allowed;
