@@ -138,6 +138,7 @@ class World {
   std::vector<ContactManifold> contacts_;          // this step's
   std::vector<ContactManifold> previousContacts_;  // the last step's, sorted by body pair
   std::vector<std::uint64_t> jointedPairs_;
+  std::vector<std::int32_t> contactOrder_;  // this step's manifolds by body pair (prepareContacts)
   CollisionSettings collision_;
   double matchDistance_ = 0.02;
   Body worldBody_;
