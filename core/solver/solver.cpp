@@ -20,6 +20,15 @@ double seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
 
+// The rotation vector (axis times angle, world) that turns q0 into q.
+Vec3 rotationBetween(const Quat& q0, const Quat& q) {
+  Quat d = q * q0.conjugate();
+  if (d.w() < 0.0) d.coeffs() = -d.coeffs();
+  const double s = d.vec().norm();
+  if (s < 1e-12) return 2.0 * d.vec();
+  return (2.0 * std::atan2(s, d.w()) / s) * d.vec();
+}
+
 // One row solved alone with its accumulated impulse clamped to [lo, hi]
 // (section 4.3: clamp the total, never the increment).
 void solveRow(ConstraintRow& row, bool useBias, SolverBody& a, SolverBody& b) {
@@ -60,6 +69,12 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   stats.solveSeconds = 0.0;
 
   buildIslands(in);
+  startX_.resize(in.bodies.size());
+  startQ_.resize(in.bodies.size());
+  for (std::size_t i = 0; i < in.bodies.size(); ++i) {
+    startX_[i] = in.bodies[i].position;
+    startQ_[i] = in.bodies[i].orientation;
+  }
   guard_.begin(in.bodies, groupOfBody_, groupCount_, in.gravity, in.h);
   for (Joint& j : in.joints)
     j.stepImpulse.fill(0.0);
@@ -348,17 +363,33 @@ void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, dou
   const double mus[2] = {surface.mu, surface.mu2 >= 0.0 ? surface.mu2 : surface.mu};
   const double motions[2] = {surface.motion1, surface.motion2};
   const double slips[2] = {surface.slip1, surface.slip2};
+  // Where the bodies were when the manifold was made (the step's start).
+  auto startOf = [&](BodyId id, const Body& body) {
+    if (id == kWorldBody) return std::pair{body.position, body.orientation};
+    return std::pair{startX_[id], startQ_[id]};
+  };
+  const auto [xA0, qA0] = startOf(m.bodyA, A);
+  const auto [xB0, qB0] = startOf(m.bodyB, B);
+  const Vec3 turnA = rotationBetween(qA0, A.orientation);
+  const Vec3 turnB = rotationBetween(qB0, B.orientation);
   for (int i = 0; i < np; ++i) {
     const ContactPoint& point = m.points[i];
+    // The contact stays where the surfaces touched when the manifold was
+    // made: its lever arms keep their world direction through the
+    // sub-steps (Box2D v3 keeps them for the step too). Turning them with
+    // the bodies walked a rolling sphere's contact up its side (a 1 m
+    // ball at 1 m/s rolled to 1.67 m/s in 10 s, and at 25 m/s sank 67 mm).
     JointPose pose;
-    pose.rA = A.orientation * point.localA;
-    pose.rB = B.orientation * point.localB;
-    pose.pA = A.position + pose.rA;
-    pose.pB = B.position + pose.rB;
-    pose.d = pose.pB - pose.pA;
+    pose.rA = qA0 * point.localA;
+    pose.rB = qB0 * point.localB;
+    pose.pA = point.position;
+    pose.pB = point.position;
+    // The separation follows the bodies' motion since then (sub-steps do
+    // not collide again), the turn to first order: a box tipping on an
+    // edge lifts its corners, a rolling sphere's contact does not rise
+    // (its lever arm is along the normal).
+    pose.d = (B.position - xB0 + turnB.cross(pose.rB)) - (A.position - xA0 + turnA.cross(pose.rA));
 
-    // The separation follows the anchors' motion since the manifold was
-    // made (sub-steps do not collide again): separation0 + n.(pB - pA).
     ConstraintRow& normal = rows[i];
     normal = ConstraintRow{};
     directionRow(pose, m.normal, normal);

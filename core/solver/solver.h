@@ -92,7 +92,9 @@ class Solver {
 
   std::vector<SolverBody> bodies_;     // one per world body, then the static dummy
   std::vector<Vec3> startV_, startW_;  // velocities before the step (explicit Euler)
-  std::vector<Vec3> gyroOffset_;       // midpoint minus end angular velocity (gyroscopic)
+  std::vector<Vec3> startX_;           // poses at the step's start: contacts stay there
+  std::vector<Quat> startQ_;
+  std::vector<Vec3> gyroOffset_;  // midpoint minus end angular velocity (gyroscopic)
   std::vector<ConstraintBlock> blocks_;
   std::vector<ConstraintRow> rows_;
   IslandBlocks islandBlocks_;  // islands whose joint equality rows are one block

@@ -120,6 +120,36 @@ TEST(Contact, CopiedContactPointsDoNotMultiplyWarmStarting) {
   EXPECT_LT(copied, 1e-3) << "copies multiplied the warm start (0.057 m/s so)";
 }
 
+// A ball rolling on the ground keeps its speed (nothing drives it, rolling
+// without slip dissipates nothing) and stays on the surface. Contacts are
+// made once per step and the sub-steps follow the bodies from there: when
+// the contact's lever arm turned with the ball, the contact walked up its
+// side within each step, and a ball rolling at 1 m/s reached 1.8 m/s in
+// 10 s (through the plugin, sinking 2.7 mm; at 25 m/s it sank 23 mm).
+TEST(Contact, RollingBallKeepsItsSpeedAndHeight) {
+  for (const double speed : {1.0, 25.0}) {
+    World world;
+    world.setSettings(SolverSettings::subStepped(10));
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    const double radius = 0.5;
+    BodyDesc d = test::sphereBody(Vec3(0, 0, radius), 1.0, radius);
+    d.linearVelocity = Vec3(speed, 0, 0);
+    d.angularVelocity = Vec3(0, speed / radius, 0);
+    const BodyId ball = world.createBody(d);
+    world.addShape(Shape::sphere(ball, radius));
+    double lowest = radius;
+    for (int f = 0; f < 600; ++f) {
+      world.step(1.0 / 60.0);
+      lowest = std::min(lowest, world.body(ball).position.z());
+    }
+    const double end = world.body(ball).linearVelocity.norm();
+    std::printf("ball rolling at %g m/s: %.5g m/s after 10 s, at most %.3g mm deep\n", speed, end,
+                1e3 * (radius - lowest));
+    EXPECT_NEAR(end, speed, 0.01 * speed);
+    EXPECT_LT(radius - lowest, 5e-4);
+  }
+}
+
 TEST(Contact, BoxStaysBelowTheFrictionAngleAndSlidesAboveIt) {
   const double mu = 0.5;  // friction angle atan(0.5) = 26.6 degrees
   for (auto model : {ContactSurface::Friction::Box, ContactSurface::Friction::Cone}) {
