@@ -55,6 +55,15 @@ bool goodMass(const dMass* m) {
   return true;
 }
 
+// Damping and speed limits: a NaN (or an infinite damping scale) would
+// turn every velocity of the body or world into NaN at the next step.
+bool goodValue(const char* function, dReal v, bool infinityAllowed) {
+  if (std::isfinite(v) || (infinityAllowed && !std::isnan(v))) return true;
+  say("%s(%g): the value must be %s; call ignored", function, double(v),
+      infinityAllowed ? "a number" : "finite");
+  return false;
+}
+
 }  // namespace
 
 extern "C" {
@@ -107,6 +116,35 @@ void dBodySetMovedCallback(dBodyID b, void (*callback)(dBodyID)) {
 void dBodySetMass(dBodyID b, const dMass* mass) {
   BLOCKSTEP_REAL(dBodySetMass);
   if (goodMass(mass)) real_dBodySetMass(b, mass);
+}
+
+// Damping and speed limits of bodies and worlds.
+#define BLOCKSTEP_CHECKED_VALUE(name, Owner, infinityAllowed)    \
+  void name(Owner o, dReal v) {                                  \
+    BLOCKSTEP_REAL(name);                                        \
+    if (goodValue(#name, v, infinityAllowed)) real_##name(o, v); \
+  }
+BLOCKSTEP_CHECKED_VALUE(dBodySetLinearDamping, dBodyID, false)
+BLOCKSTEP_CHECKED_VALUE(dBodySetAngularDamping, dBodyID, false)
+BLOCKSTEP_CHECKED_VALUE(dBodySetLinearDampingThreshold, dBodyID, true)
+BLOCKSTEP_CHECKED_VALUE(dBodySetAngularDampingThreshold, dBodyID, true)
+BLOCKSTEP_CHECKED_VALUE(dBodySetMaxAngularSpeed, dBodyID, true)
+BLOCKSTEP_CHECKED_VALUE(dWorldSetLinearDamping, dWorldID, false)
+BLOCKSTEP_CHECKED_VALUE(dWorldSetAngularDamping, dWorldID, false)
+BLOCKSTEP_CHECKED_VALUE(dWorldSetLinearDampingThreshold, dWorldID, true)
+BLOCKSTEP_CHECKED_VALUE(dWorldSetAngularDampingThreshold, dWorldID, true)
+BLOCKSTEP_CHECKED_VALUE(dWorldSetMaxAngularSpeed, dWorldID, true)
+
+void dBodySetDamping(dBodyID b, dReal linear, dReal angular) {
+  BLOCKSTEP_REAL(dBodySetDamping);
+  if (goodValue("dBodySetDamping", linear, false) && goodValue("dBodySetDamping", angular, false))
+    real_dBodySetDamping(b, linear, angular);
+}
+
+void dWorldSetDamping(dWorldID w, dReal linear, dReal angular) {
+  BLOCKSTEP_REAL(dWorldSetDamping);
+  if (goodValue("dWorldSetDamping", linear, false) && goodValue("dWorldSetDamping", angular, false))
+    real_dWorldSetDamping(w, linear, angular);
 }
 
 // ---------------------------------------------------------------- joints

@@ -67,6 +67,30 @@ TEST(OdeBadInput, NanOrNegativeMassIsRefused) {
   p.expectSwingsOnItsHinge();
 }
 
+// A NaN damping wrote NaN velocities at the next step (issue 14).
+TEST(OdeBadInput, NanDampingIsRefused) {
+  Pendulum p;
+  testing::internal::CaptureStderr();
+  dBodySetLinearDamping(p.bob, kNaN);
+  dBodySetAngularDamping(p.bob, kNaN);
+  dBodySetDamping(p.bob, 0.01, kNaN);
+  dWorldSetLinearDamping(p.s.world, kNaN);
+  dBodySetMaxAngularSpeed(p.bob, kNaN);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("dBodySetLinearDamping(nan): the value must be finite; call ignored"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find("dWorldSetLinearDamping(nan)"), std::string::npos) << err;
+  EXPECT_NE(err.find("dBodySetMaxAngularSpeed(nan): the value must be a number"), std::string::npos)
+      << err;
+  EXPECT_EQ(dBodyGetLinearDamping(p.bob), 0.0);
+  EXPECT_EQ(dBodyGetAngularDamping(p.bob), 0.0);
+  EXPECT_EQ(dWorldGetLinearDamping(p.s.world), 0.0);
+  EXPECT_TRUE(std::isinf(dBodyGetMaxAngularSpeed(p.bob)));
+  dBodySetMaxAngularSpeed(p.bob, dInfinity);  // allowed: no limit
+  p.expectSwingsOnItsHinge();
+}
+
 TEST(OdeBadInput, ZeroOrNonFiniteAxisIsRefused) {
   Pendulum p;
   testing::internal::CaptureStderr();
