@@ -12,6 +12,12 @@ inline double rowVelocity(const ConstraintRow& row, const SolverBody& a, const S
   return row.linA.dot(a.v) + row.angA.dot(a.w) + row.linB.dot(b.v) + row.angB.dot(b.w);
 }
 
+// K_rr = J_r M^-1 J_r^T: the row's inverse effective mass (invIang* set).
+inline double rowDiagonal(const ConstraintRow& row, const SolverBody& a, const SolverBody& b) {
+  return a.invMass * row.linA.squaredNorm() + row.angA.dot(row.invIangA) +
+         b.invMass * row.linB.squaredNorm() + row.angB.dot(row.invIangB);
+}
+
 inline void applyImpulse(const ConstraintRow& row, double dP, SolverBody& a, SolverBody& b) {
   a.v += (a.invMass * dP) * row.linA;
   a.w += dP * row.invIangA;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/solver/row_ops.h"
+
 namespace blockstep {
 namespace {
 
@@ -92,47 +94,47 @@ void RunawayGuard::begin(const std::vector<Body>& bodies,
   }
 }
 
+// Adds f(row, a, b) over each island's rows to what the island explains.
+template <class F>
+void RunawayGuard::addOverRows(const std::vector<ConstraintBlock>& blocks,
+                               const std::vector<ConstraintRow>& rows,
+                               const std::vector<SolverBody>& bodies,
+                               const std::vector<std::int32_t>& groupStart, int islandCount, F f) {
+  for (int g = 0; g < islandCount; ++g) {
+    double sum = 0.0;
+    for (std::int32_t bi = groupStart[g]; bi < groupStart[g + 1]; ++bi) {
+      const ConstraintBlock& blk = blocks[bi];
+      const SolverBody& a = bodies[blk.bodyA];
+      const SolverBody& b = bodies[blk.bodyB];
+      for (int r = blk.firstRow; r < blk.firstRow + blk.rowCount(); ++r)
+        sum += f(rows[r], a, b);
+    }
+    groups_[g].explained += sum;
+  }
+}
+
 void RunawayGuard::addCorrections(const std::vector<ConstraintBlock>& blocks,
                                   const std::vector<ConstraintRow>& rows,
                                   const std::vector<SolverBody>& bodies,
                                   const std::vector<std::int32_t>& groupStart, int islandCount,
                                   double h) {
-  for (int g = 0; g < islandCount; ++g) {
-    double energy = 0.0;
-    for (std::int32_t bi = groupStart[g]; bi < groupStart[g + 1]; ++bi) {
-      const ConstraintBlock& blk = blocks[bi];
-      const SolverBody& a = bodies[blk.bodyA];
-      const SolverBody& b = bodies[blk.bodyB];
-      for (int r = blk.firstRow; r < blk.firstRow + blk.rowCount(); ++r) {
-        const ConstraintRow& row = rows[r];
-        const double d = closingSpeed(row, h);
-        const double k = a.invMass * row.linA.squaredNorm() + row.angA.dot(row.invIangA) +
-                         b.invMass * row.linB.squaredNorm() + row.angB.dot(row.invIangB);
-        if (d != 0.0 && k > 0.0) energy += 0.5 * d * d / k;
-      }
-    }
-    groups_[g].explained += energy;
-  }
+  addOverRows(blocks, rows, bodies, groupStart, islandCount,
+              [h](const ConstraintRow& row, const SolverBody& a, const SolverBody& b) {
+                const double d = closingSpeed(row, h);
+                const double k = rowDiagonal(row, a, b);
+                return d != 0.0 && k > 0.0 ? 0.5 * d * d / k : 0.0;
+              });
 }
 
 void RunawayGuard::addWork(const std::vector<ConstraintBlock>& blocks,
                            const std::vector<ConstraintRow>& rows,
                            const std::vector<SolverBody>& bodies,
                            const std::vector<std::int32_t>& groupStart, int islandCount) {
-  for (int g = 0; g < islandCount; ++g) {
-    double work = 0.0;
-    for (std::int32_t bi = groupStart[g]; bi < groupStart[g + 1]; ++bi) {
-      const ConstraintBlock& blk = blocks[bi];
-      const SolverBody& a = bodies[blk.bodyA];
-      const SolverBody& b = bodies[blk.bodyB];
-      for (int r = blk.firstRow; r < blk.firstRow + blk.rowCount(); ++r) {
-        const ConstraintRow& row = rows[r];
-        const double d = std::abs(row.target) + std::abs(drivenBy(row, a, b));
-        work += std::abs(row.impulse) * d;
-      }
-    }
-    groups_[g].explained += work;
-  }
+  addOverRows(blocks, rows, bodies, groupStart, islandCount,
+              [](const ConstraintRow& row, const SolverBody& a, const SolverBody& b) {
+                return std::abs(row.impulse) *
+                       (std::abs(row.target) + std::abs(drivenBy(row, a, b)));
+              });
 }
 
 void RunawayGuard::check(const std::vector<Body>& bodies,

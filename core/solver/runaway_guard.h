@@ -65,6 +65,10 @@ class RunawayGuard {
              StepStats& stats);
 
  private:
+  template <class F>
+  void addOverRows(const std::vector<ConstraintBlock>& blocks,
+                   const std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies,
+                   const std::vector<std::int32_t>& groupStart, int islandCount, F f);
   struct Group {
     double before = 0.0;     // kinetic energy before the step
     double explained = 0.0;  // E_free plus the rows' targets

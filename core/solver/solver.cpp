@@ -479,8 +479,7 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
     ConstraintRow& row = rows[i];
     row.invIangA = a.invI * row.angA;
     row.invIangB = b.invI * row.angB;
-    const double kDiag = a.invMass * row.linA.squaredNorm() + row.angA.dot(row.invIangA) +
-                         b.invMass * row.linB.squaredNorm() + row.angB.dot(row.invIangB);
+    const double kDiag = rowDiagonal(row, a, b);
     switch (row.biasKind) {
       case RowBias::Velocity:  // motors, friction: lo/hi and gamma came per unit force
         row.bias = row.biasRelax = -row.target;

@@ -27,6 +27,14 @@ struct ReplaceQuickStep {
   ~ReplaceQuickStep() { dBlockStepSetReplace("none"); }
 };
 
+// Quickstep 20 as the program asks, blockstep's island blocks on or off
+// and its runaway limits.
+void configure(OdeScene& s, bool islandBlocks, double energyGain, double maxSpeed) {
+  dWorldSetQuickStepNumIterations(s.world, 20);
+  dWorldSetBlockIslandBlockRows(s.world, islandBlocks ? 192 : 0);
+  dWorldSetBlockRunawayLimits(s.world, energyGain, maxSpeed);
+}
+
 double norm3(const dReal* v) {
   return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
 }
@@ -57,9 +65,7 @@ StarRun runStar(bool blockstep, bool islandBlocks, double energyGain) {
   ReplaceQuickStep replace(blockstep);
   OdeScene s;
   dWorldSetGravity(s.world, 0, 0, 0);
-  dWorldSetQuickStepNumIterations(s.world, 20);
-  dWorldSetBlockIslandBlockRows(s.world, islandBlocks ? 192 : 0);
-  dWorldSetBlockRunawayLimits(s.world, energyGain, 0);
+  configure(s, islandBlocks, energyGain, 0);
 
   dBodyID anchor = s.box(0, 0, 1, 0.1, 0.15);
   dMass total;
@@ -185,9 +191,7 @@ ChainRun runChain(bool blockstep, bool islandBlocks, double energyGain, double e
                   double maxSpeed = 0.0) {
   ReplaceQuickStep replace(blockstep);
   OdeScene s;
-  dWorldSetQuickStepNumIterations(s.world, 20);
-  dWorldSetBlockIslandBlockRows(s.world, islandBlocks ? 192 : 0);
-  dWorldSetBlockRunawayLimits(s.world, energyGain, maxSpeed);
+  configure(s, islandBlocks, energyGain, maxSpeed);
   dBodyID previous = nullptr;
   for (int i = 0; i < 40; ++i) {
     dBodyID link = dBodyCreate(s.world);
