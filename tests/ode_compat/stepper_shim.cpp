@@ -5,24 +5,39 @@
 //   BSCOMPAT_STEPPER=swap      dWorldQuickStep runs dWorldStep and back
 //   BSCOMPAT_STEP_SCALE=s      every step size is multiplied by s
 //                              (1 +- 1e-9: is the demo chaotic?)
+//   BSCOMPAT_REFINE=n          every step runs as n steps of dWorldStep
+//                              (ODE's direct solver) of h / n: the forces
+//                              the program added act on each, and damping
+//                              (ODE scales velocities by 1 - d per step)
+//                              becomes 1 - (1 - d)^(1/n) per step, so
+//                              only the time resolution changes. This is
+//                              ODE's own converged answer for a demo
+//                              without contacts; contact joints would
+//                              repeat their depth correction n times, so
+//                              demos with contacts cannot be refined so.
 #include <dlfcn.h>
 #include <ode/ode.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <map>
+#include <set>
 
 namespace {
 
 using Stepper = int (*)(dWorldID, dReal);
 
-Stepper realStepper(const char* name) {
-  const auto s = reinterpret_cast<Stepper>(dlsym(RTLD_NEXT, name));
-  if (!s) {
+template <typename F>
+F real(const char* name) {
+  const auto f = reinterpret_cast<F>(dlsym(RTLD_NEXT, name));
+  if (!f) {
     std::fprintf(stderr, "stepper shim: ODE's %s not found\n", name);
     std::exit(2);
   }
-  return s;
+  return f;
 }
 
 bool swapped() {
@@ -35,11 +50,89 @@ dReal scaled(dReal h) {
   return v ? h * static_cast<dReal>(std::strtod(v, nullptr)) : h;
 }
 
+int refinement() {
+  const char* v = std::getenv("BSCOMPAT_REFINE");
+  return v ? std::max(1, std::atoi(v)) : 1;
+}
+
+// The bodies of each world, to carry forces and damping through the
+// refined steps (ODE has no call that lists a world's bodies).
+std::map<dWorldID, std::set<dBodyID>>& bodiesOf() {
+  static std::map<dWorldID, std::set<dBodyID>> bodies;
+  return bodies;
+}
+
+// Damping d per step of h as the same decay per step of h / n.
+dReal finerDamping(dReal d, int n) {
+  return d > 0 ? 1 - std::pow(1 - d, 1.0 / n) : d;
+}
+
+int refinedStep(dWorldID w, dReal h, int n) {
+  static const auto directStep = real<Stepper>("dWorldStep");
+  struct Saved {
+    dBodyID body;
+    dVector3 force, torque;
+    dReal linearDamping, angularDamping;
+  };
+  Saved saved[512];
+  int count = 0;
+  for (dBodyID b : bodiesOf()[w]) {
+    if (count == 512) {
+      std::fprintf(stderr, "stepper shim: more than 512 bodies, cannot refine\n");
+      std::exit(2);
+    }
+    Saved& s = saved[count++];
+    s.body = b;
+    std::memcpy(s.force, dBodyGetForce(b), sizeof s.force);
+    std::memcpy(s.torque, dBodyGetTorque(b), sizeof s.torque);
+    s.linearDamping = dBodyGetLinearDamping(b);
+    s.angularDamping = dBodyGetAngularDamping(b);
+    dBodySetLinearDamping(b, finerDamping(s.linearDamping, n));
+    dBodySetAngularDamping(b, finerDamping(s.angularDamping, n));
+  }
+  int ok = 1;
+  for (int k = 0; k < n && ok; ++k) {
+    for (int i = 0; i < count && k > 0; ++i) {
+      dBodySetForce(saved[i].body, saved[i].force[0], saved[i].force[1], saved[i].force[2]);
+      dBodySetTorque(saved[i].body, saved[i].torque[0], saved[i].torque[1], saved[i].torque[2]);
+    }
+    ok = directStep(w, h / n);
+  }
+  for (int i = 0; i < count; ++i) {
+    dBodySetLinearDamping(saved[i].body, saved[i].linearDamping);
+    dBodySetAngularDamping(saved[i].body, saved[i].angularDamping);
+  }
+  return ok;
+}
+
 int step(dWorldID w, dReal h, const char* name) {
-  return realStepper(name)(w, scaled(h));
+  const int n = refinement();
+  if (n > 1) return refinedStep(w, scaled(h), n);
+  static const auto quick = real<Stepper>("dWorldQuickStep");
+  static const auto direct = real<Stepper>("dWorldStep");
+  return (std::strcmp(name, "dWorldStep") == 0 ? direct : quick)(w, scaled(h));
 }
 
 }  // namespace
+
+extern "C" dBodyID dBodyCreate(dWorldID w) {
+  static const auto create = real<dBodyID (*)(dWorldID)>("dBodyCreate");
+  dBodyID b = create(w);
+  bodiesOf()[w].insert(b);
+  return b;
+}
+
+extern "C" void dBodyDestroy(dBodyID b) {
+  static const auto destroy = real<void (*)(dBodyID)>("dBodyDestroy");
+  bodiesOf()[dBodyGetWorld(b)].erase(b);
+  destroy(b);
+}
+
+extern "C" void dWorldDestroy(dWorldID w) {
+  static const auto destroy = real<void (*)(dWorldID)>("dWorldDestroy");
+  destroy(w);
+  bodiesOf().erase(w);
+}
 
 extern "C" int dWorldQuickStep(dWorldID w, dReal h) {
   return step(w, h, swapped() ? "dWorldStep" : "dWorldQuickStep");
