@@ -15,11 +15,20 @@
 //                              without contacts; contact joints would
 //                              repeat their depth correction n times, so
 //                              demos with contacts cannot be refined so.
+//   BSCOMPAT_RNG=split         ODE's own draws from its random generator
+//                              (quickstep shuffles its rows with dRandInt)
+//                              come from a stream of their own, so the
+//                              program's draws (the random objects a demo
+//                              drops) are the same whatever steps it:
+//                              blockstep does not draw, and without this
+//                              a demo would drop other objects under it.
 #include <dlfcn.h>
+#include <link.h>
 #include <ode/ode.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -113,7 +122,83 @@ int step(dWorldID w, dReal h, const char* name) {
   return (std::strcmp(name, "dWorldStep") == 0 ? direct : quick)(w, scaled(h));
 }
 
+bool rngSplit() {
+  const char* v = std::getenv("BSCOMPAT_RNG");
+  return v && std::strcmp(v, "split") == 0;
+}
+
+// Where libode's code lies (found once: quickstep draws thousands of
+// times per step).
+struct CodeRange {
+  std::uintptr_t begin = 0, end = 0;
+};
+
+CodeRange odeCode() {
+  static const CodeRange range = [] {
+    Dl_info info{};
+    dladdr(reinterpret_cast<void*>(real<unsigned long (*)()>("dRand")), &info);
+    CodeRange r;
+    r.begin = reinterpret_cast<std::uintptr_t>(info.dli_fbase);
+    dl_iterate_phdr(
+        [](dl_phdr_info* object, std::size_t, void* data) {
+          auto* found = static_cast<CodeRange*>(data);
+          if (object->dlpi_addr != found->begin) return 0;
+          for (int i = 0; i < object->dlpi_phnum; ++i) {
+            const ElfW(Phdr)& segment = object->dlpi_phdr[i];
+            if (segment.p_type == PT_LOAD)
+              found->end = std::max<std::uintptr_t>(
+                  found->end, object->dlpi_addr + segment.p_vaddr + segment.p_memsz);
+          }
+          return 1;
+        },
+        &r);
+    return r;
+  }();
+  return range;
+}
+
+bool calledFromOde(const void* returnAddress) {
+  const auto a = reinterpret_cast<std::uintptr_t>(returnAddress);
+  const CodeRange r = odeCode();
+  return a >= r.begin && a < r.end;
+}
+
+thread_local int drawDepth = 0;  // > 0 inside a draw (dRandReal calls dRand)
+unsigned long odeSeed = 0;       // ODE's own stream
+
+template <typename Result, typename... Args>
+Result draw(Result (*realDraw)(Args...), const void* caller, Args... args) {
+  ++drawDepth;
+  if (drawDepth > 1 || !rngSplit() || !calledFromOde(caller)) {
+    const Result r = realDraw(args...);
+    --drawDepth;
+    return r;
+  }
+  const unsigned long programSeed = dRandGetSeed();
+  dRandSetSeed(odeSeed);
+  const Result r = realDraw(args...);
+  odeSeed = dRandGetSeed();
+  dRandSetSeed(programSeed);
+  --drawDepth;
+  return r;
+}
+
 }  // namespace
+
+extern "C" unsigned long dRand() {
+  static const auto f = real<unsigned long (*)()>("dRand");
+  return draw(f, __builtin_return_address(0));
+}
+
+extern "C" int dRandInt(int n) {
+  static const auto f = real<int (*)(int)>("dRandInt");
+  return draw(f, __builtin_return_address(0), n);
+}
+
+extern "C" dReal dRandReal() {
+  static const auto f = real<dReal (*)()>("dRandReal");
+  return draw(f, __builtin_return_address(0));
+}
 
 extern "C" dBodyID dBodyCreate(dWorldID w) {
   static const auto create = real<dBodyID (*)(dWorldID)>("dBodyCreate");
