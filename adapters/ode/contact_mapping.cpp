@@ -24,6 +24,7 @@ MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
   m.pointCount = 1;
   m.points[0].position = Vec3(contact.geom.pos[0], contact.geom.pos[1], contact.geom.pos[2]);
   m.points[0].separation = -contact.geom.depth;
+  m.points[0].normal = m.normal;
 
   ContactSurface& c = m.surface;
   c.softness = Softness::erpCfm((mode & dContactSoftERP) ? s.soft_erp : world.erp,
@@ -91,8 +92,11 @@ void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactMa
   for (const ContactManifold& c : in) {
     ContactManifold* target = nullptr;
     for (ContactManifold& m : out) {
-      if (m.bodyA == c.bodyA && m.bodyB == c.bodyB && m.pointCount < kMaxManifoldPoints &&
-          m.normal.dot(c.normal) > 0.999 && sameSurface(m.surface, c.surface)) {
+      // Rolling and spinning act about the manifold's one normal.
+      const bool along =
+          m.normal.dot(c.normal) > 0.999 || (c.surface.rolling == 0.0 && c.surface.spinning == 0.0);
+      if (m.bodyA == c.bodyA && m.bodyB == c.bodyB && m.pointCount < kMaxManifoldPoints && along &&
+          sameSurface(m.surface, c.surface)) {
         target = &m;
         break;
       }

@@ -44,10 +44,13 @@ struct MappedContact {
 MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
                          const WorldContactParams& world);
 
-// ODE makes one contact joint per point. Points of the same body pair with
-// the same normal (within about 2.5 degrees) and the same surface are one
-// manifold for the core (up to four points), so they are solved as one
-// block instead of point by point. Merges `in` (one-point manifolds, in
+// ODE makes one contact joint per point. Points of the same body pair and
+// the same surface are one manifold for the core (up to four points, each
+// along its own normal), so they are solved as one block instead of point
+// by point: a ball dropped into a groove lands on both walls at once
+// instead of being kicked sideways by the wall solved first. With rolling
+// or spinning resistance (about one normal) only points whose normals
+// agree within about 2.5 degrees are grouped. Merges `in` (one-point manifolds, in
 // ODE's order) into `out`, which is cleared first.
 void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactManifold>& out);
 

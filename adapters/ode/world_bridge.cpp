@@ -657,8 +657,8 @@ void WorldBridge::writeContactFeedback() {
       for (int i = 0; i < m.pointCount; ++i) {
         const ContactPoint& p = m.points[i];
         if ((p.position - c.position).squaredNorm() > 1e-24) continue;
-        const Vec3 onB = (p.stepNormalImpulse * m.normal + p.stepTangentImpulse[0] * m.tangent1 +
-                          p.stepTangentImpulse[1] * m.tangent2) /
+        const Vec3 onB = (p.stepNormalImpulse * p.normal + p.stepTangentImpulse[0] * p.tangent1 +
+                          p.stepTangentImpulse[1] * p.tangent2) /
                          step_;
         onBody1 = same ? onB : Vec3(-onB);
       }

@@ -1,5 +1,5 @@
-// Contact manifolds: up to four points between two bodies sharing one
-// normal, with the surface properties ODE's dSurfaceParameters carry.
+// Contact manifolds: up to four points between two bodies, usually sharing
+// one normal, with the surface properties ODE's dSurfaceParameters carry.
 // They come each step from the core's collision (collision/) or from a
 // caller (the ODE adapter turns ODE's contact joints into them), and are
 // solved as blocks beside the joints (section 4.2 contact rows).
@@ -42,11 +42,19 @@ struct ContactSurface {
 
 struct ContactPoint {
   Vec3 position = Vec3::Zero();  // world, when the manifold was made
-  double separation = 0.0;       // m, < 0 when penetrating
-  std::uint32_t feature = 0;     // the caller's id for matching across steps; 0: none
+  double separation = 0.0;       // m, < 0 when penetrating, along the point's normal
+  // The point's own normal (unit, from A toward B); zero: the manifold's.
+  // Points of one body pair touching along different normals (a ball in a
+  // groove on both walls) are still one block: their normal impulses are
+  // solved together (section 4.3), so a symmetric impact stays symmetric.
+  // The world fills it in when zero.
+  Vec3 normal = Vec3::Zero();
+  std::uint32_t feature = 0;  // the caller's id for matching across steps; 0: none
   // Filled by the world: anchors fixed in each body, so sub-steps update
-  // the separation from the bodies' motion without colliding again.
+  // the separation from the bodies' motion without colliding again, and
+  // the friction directions across the point's normal.
   Vec3 localA = Vec3::Zero(), localB = Vec3::Zero();
+  Vec3 tangent1 = Vec3::UnitX(), tangent2 = Vec3::UnitY();
   // Accumulated impulses (warm starting), and summed over the last step.
   double normalImpulse = 0.0;
   double tangentImpulse[2] = {0.0, 0.0};
@@ -57,11 +65,12 @@ struct ContactPoint {
 struct ContactManifold {
   BodyId bodyA = kWorldBody;
   BodyId bodyB = kWorldBody;
-  Vec3 normal = Vec3::UnitZ();  // unit, from A toward B
+  Vec3 normal = Vec3::UnitZ();  // unit, from A toward B (rolling and spinning act about it)
   int pointCount = 0;
   ContactPoint points[kMaxManifoldPoints];
   ContactSurface surface;
-  // Filled by the world.
+  // Filled by the world: the friction directions across the manifold's
+  // normal (the axes of the rolling rows).
   Vec3 tangent1 = Vec3::UnitX(), tangent2 = Vec3::UnitY();
   double rollingImpulse[3] = {0.0, 0.0, 0.0};  // about tangent1, tangent2, normal
   double warmStepSize = 0.0;

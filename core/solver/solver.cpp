@@ -89,6 +89,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   // without an energy limit only non-finite states and speeds are checked.
   const bool countEnergy = s.runawayEnergyGain > 0.0 && std::isfinite(s.runawayEnergyGain);
   for (int sub = 0; sub < substeps; ++sub) {
+    sinceStepStart_ = sub * h;
     integrateVelocities(in, s, h);
     const auto solveStart = Clock::now();
     prepare(in, s, h);
@@ -344,8 +345,8 @@ void Solver::buildJointBlock(const StepInput& in, const SolverSettings& s, doubl
 }
 
 // A manifold's rows: the normal of each point (section 4.2: the paper's
-// contact row, with B's side first in our sign convention), solved
-// together as one unilateral block; then two friction rows per point
+// contact row, with B's side first in our sign convention; each point
+// along its own normal), solved together as one unilateral block; then two friction rows per point
 // bounded by that point's normal impulse, and rolling and spinning rows
 // bounded by the manifold's total normal impulse.
 // Row slots: normal i -> i, friction of point i along tangent d ->
@@ -359,7 +360,6 @@ void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, dou
   ConstraintRow* rows = &rows_[blk.firstRow];
   const int np = m.pointCount;
   const double warmRatio = s.warmStarting && m.warmStepSize > 0.0 ? h / m.warmStepSize : 0.0;
-  const Vec3 tangents[2] = {m.tangent1, m.tangent2};
   const double mus[2] = {surface.mu, surface.mu2 >= 0.0 ? surface.mu2 : surface.mu};
   const double motions[2] = {surface.motion1, surface.motion2};
   const double slips[2] = {surface.slip1, surface.slip2};
@@ -392,8 +392,14 @@ void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, dou
 
     ConstraintRow& normal = rows[i];
     normal = ConstraintRow{};
-    directionRow(pose, m.normal, normal);
-    normal.C = point.separation + m.normal.dot(pose.d);
+    directionRow(pose, point.normal, normal);
+    // A moving surface (ODE motionN) moves on through the sub-steps: the
+    // gap is measured from where it is now. Measured from where the
+    // collision found it, a body lifted by a platform (demo_motion) drew
+    // away from it within the step, the row let it fall back by that gap,
+    // and it rode 1.2 mm deep at 0.242 m/s on a 0.25 m/s platform (one
+    // sub-step: 0.046 m/s).
+    normal.C = point.separation + point.normal.dot(pose.d) - surface.motionN * sinceStepStart_;
     normal.slot = static_cast<std::uint8_t>(i);
     normal.biasKind = RowBias::Speculative;
     normal.softness = &surface.softness;
@@ -405,6 +411,7 @@ void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, dou
     normal.lo = 0.0;
     normal.impulse = warmRatio * point.normalImpulse;
 
+    const Vec3 tangents[2] = {point.tangent1, point.tangent2};
     for (int d = 0; d < 2; ++d) {
       ConstraintRow& t = rows[np + 2 * i + d];
       t = ConstraintRow{};
@@ -870,7 +877,7 @@ void Solver::relax(const SolverSettings& s, double h) {
       // slowly and lose the rebound (a hinge stop with bounce 0.5 returned
       // 0.22 of 1.30 rad/s).
       if (row.bounce > 0.0 && v < -row.bounceThreshold) continue;
-      const double gap = row.C + h * v;
+      const double gap = row.C + h * (v - row.target);  // a moving surface moved on too
       row.biasRelax = std::max(gap, 0.0) / h - row.target;
     }
   }

@@ -129,7 +129,8 @@ class Solver {
   RunawayGuard guard_;
   int rowCount_ = 0;
   std::int32_t dummy_ = 0;
-  double stepSize_ = 0.0;  // the whole step being taken (sub-steps divide it)
+  double stepSize_ = 0.0;        // the whole step being taken (sub-steps divide it)
+  double sinceStepStart_ = 0.0;  // when the current sub-step starts, s into the step
 };
 
 }  // namespace blockstep

@@ -75,9 +75,14 @@ void World::addContact(const ContactManifold& manifold) {
     throw Error(who() + ": 1 to 4 points, got " + std::to_string(m.pointCount));
   }
   for (int i = 0; i < m.pointCount; ++i) {
-    if (!m.points[i].position.allFinite() || !std::isfinite(m.points[i].separation)) {
+    ContactPoint& p = m.points[i];
+    if (!p.position.allFinite() || !std::isfinite(p.separation) || !p.normal.allFinite()) {
       throw Error(who() + ": point " + std::to_string(i) + " is not finite");
     }
+    const double pn = p.normal.norm();
+    if (pn > 0.0 && pn < 1e-9)
+      throw Error(who() + ": point " + std::to_string(i) + " has a degenerate normal");
+    p.normal = pn > 0.0 ? Vec3(p.normal / pn) : m.normal;
   }
   const ContactSurface& c = m.surface;
   if (!(c.mu >= 0.0) || std::isnan(c.mu2) || !(c.rolling >= 0.0) || !(c.spinning >= 0.0) ||
@@ -137,19 +142,31 @@ void World::collide() {
 // times, and a resting body's friction impulses grew to 0.86 N s against
 // 0.003 N s of weight per step until a change of the set threw it
 // (demo_moving_trimesh).
+namespace {
+
+// Friction directions across a normal: the surface's first direction
+// (ODE's fdir1) where given, any perpendicular pair otherwise.
+void frictionBasis(const Vec3& normal, const Vec3& dir1, Vec3& t1, Vec3& t2) {
+  const Vec3 dir = dir1 - dir1.dot(normal) * normal;
+  if (dir.norm() > 1e-6) {
+    t1 = dir.normalized();
+    t2 = normal.cross(t1);
+  } else {
+    perpendicularBasis(normal, t1, t2);
+  }
+}
+
+}  // namespace
+
 void World::prepareContacts() {
   for (ContactManifold& m : contacts_) {
     const Body& a = endpoint(m.bodyA);
     const Body& b = endpoint(m.bodyB);
-    const Vec3 dir = m.surface.frictionDir1 - m.surface.frictionDir1.dot(m.normal) * m.normal;
-    if (dir.norm() > 1e-6) {
-      m.tangent1 = dir.normalized();
-      m.tangent2 = m.normal.cross(m.tangent1);
-    } else {
-      perpendicularBasis(m.normal, m.tangent1, m.tangent2);
-    }
+    frictionBasis(m.normal, m.surface.frictionDir1, m.tangent1, m.tangent2);
     for (int i = 0; i < m.pointCount; ++i) {
       ContactPoint& p = m.points[i];
+      if (p.normal.isZero()) p.normal = m.normal;  // from the core's own collision
+      frictionBasis(p.normal, m.surface.frictionDir1, p.tangent1, p.tangent2);
       p.localA = a.localPoint(p.position);
       p.localB = b.localPoint(p.position);
       p.normalImpulse = 0.0;
@@ -186,9 +203,9 @@ void World::prepareContacts() {
         ContactManifold& m = contacts_[contactOrder_[n]];
         // The pair may be named the other way round; the normals must agree.
         const double sign = old.bodyA == m.bodyA ? 1.0 : -1.0;
-        if (sign * old.normal.dot(m.normal) < 0.95) continue;
         for (int i = 0; i < m.pointCount; ++i) {
           ContactPoint& p = m.points[i];
+          if (sign * q.normal.dot(p.normal) < 0.95) continue;
           if (q.feature != 0 || p.feature != 0) {
             if (p.feature == q.feature) {
               target = &m, match = &p;
@@ -204,10 +221,10 @@ void World::prepareContacts() {
       const double sign = old.bodyA == target->bodyA ? 1.0 : -1.0;
       // Carry the old tangent impulse over onto the new tangents.
       const Vec3 oldT =
-          sign * (q.tangentImpulse[0] * old.tangent1 + q.tangentImpulse[1] * old.tangent2);
+          sign * (q.tangentImpulse[0] * q.tangent1 + q.tangentImpulse[1] * q.tangent2);
       match->normalImpulse += q.normalImpulse;
-      match->tangentImpulse[0] += oldT.dot(target->tangent1);
-      match->tangentImpulse[1] += oldT.dot(target->tangent2);
+      match->tangentImpulse[0] += oldT.dot(match->tangent1);
+      match->tangentImpulse[1] += oldT.dot(match->tangent2);
       if (target->warmStepSize == 0.0) {
         target->warmStepSize = old.warmStepSize;
         for (int r = 0; r < 3; ++r)

@@ -1,6 +1,7 @@
 // Contacts made the ODE way (geoms, dSpaceCollide, contact joints in a
 // group) and stepped by dWorldBlockStep: a stack rests, and bounce,
 // friction, soft_cfm and motion1 behave as ODE's direct solver has them.
+#include <algorithm>
 #include <cmath>
 
 #include "ode_twin.h"
@@ -327,6 +328,114 @@ TEST(OdeContacts, SubSteppedDefaultSlidesAndSinksAsPhysicsSays) {
     std::printf("  sub-stepped soft contact sink %.4f m\n", sink);
     EXPECT_NEAR(sink, 10.0 * 9.81 / (4.0 * 12000.0), 0.02 * sink);
   }
+}
+
+// A ball dropped into a V groove (walls 10 degrees off level, the groove
+// running 10 degrees downhill, the surface of ODE's demo_tracks): both walls
+// must catch it at once, so it lands on the groove's line and stays there,
+// then rolls down at the closed form for rolling on two lines of contact,
+// a = g sin(incline) / (1 + (2/5) / cos^2(wall)) (the contact points lie
+// r cos(wall) from the rolling axis). Solved wall by wall, the wall taken
+// first kicked the ball sideways and it rocked across the groove.
+TEST(OdeContacts, BallInAGrooveLandsOnItsLineAndRollsAsTheClosedForm) {
+  const double wall = 10.0 * M_PI / 180.0, incline = 10.0 * M_PI / 180.0, r = 0.4;
+  auto run = [&](Stepper stepper, double& accel, double& sideways, double& offWall) {
+    ContactScene s;
+    dGeomDestroy(s.geoms[0]);  // no ground: the groove's walls instead
+    for (double side : {1.0, -1.0}) {
+      dCreatePlane(s.space, -std::sin(incline) * std::cos(wall), side * std::sin(wall),
+                   std::cos(incline) * std::cos(wall), 0.0);
+    }
+    s.surface.mode = dContactApprox1 | dContactBounce | dContactSoftERP;  // demo_tracks' surface
+    s.surface.mu = 10.0;
+    s.surface.bounce = 0.2;
+    s.surface.soft_erp = 1e-3;
+    const double lift = r / std::cos(wall) + 0.5;  // 0.5 m above the resting height
+    dBodyID ball = s.sphere(-std::sin(incline) * lift, 0.0, std::cos(incline) * lift, r);
+    dMass m;
+    dMassSetSphere(&m, 0.1, r);  // the demo's density: 27 g
+    dBodySetMass(ball, &m);
+    double x[3];
+    sideways = 0.0;
+    for (int k = 1; k <= 150; ++k) {  // 50 Hz, as the demo
+      s.step(stepper, 0.02);
+      sideways = std::max(sideways, std::abs(dBodyGetPosition(ball)[1]));
+      if (k % 50 == 0) x[k / 50 - 1] = dBodyGetPosition(ball)[0];
+    }
+    accel = (x[2] - 2.0 * x[1] + x[0]);  // over 1 s intervals
+    // Height above the groove's line against resting on both walls.
+    const dReal* p = dBodyGetPosition(ball);
+    const double above = -std::sin(incline) * p[0] + std::cos(incline) * p[2];
+    offWall = std::abs(above * std::cos(wall) - r);
+  };
+  const double expected = -9.81 * std::sin(incline) /
+                          (1.0 + 0.4 / (std::cos(wall) * std::cos(wall))) * std::cos(incline);
+  double aBlock, yBlock, dBlock, aQuick, yQuick, dQuick;
+  run(Stepper::Block, aBlock, yBlock, dBlock);
+  run(Stepper::Quick, aQuick, yQuick, dQuick);
+  std::printf(
+      "  rolling down: a_x %.4f m/s^2 (closed form %.4f, quickstep %.4f); largest sideways "
+      "offset %.2g m (quickstep %.2g); off the walls at 3 s %.2g m (quickstep %.2g)\n",
+      aBlock, expected, aQuick, yBlock, yQuick, dBlock, dQuick);
+  EXPECT_NEAR(aBlock, expected, 0.005 * std::abs(expected));
+  EXPECT_LT(yBlock, 1e-3) << "a symmetric landing must not push the ball sideways";
+  EXPECT_LT(dBlock, 1e-3);
+}
+
+// demo_motion's lift: a platform geom the program moves up at 0.25 m/s
+// (and sideways), its contacts carrying that speed as motionN, motion1 and
+// motion2. A box riding it moves with it and stays on its surface, as with
+// ODE's steppers (closed form: the platform's velocity, no penetration).
+TEST(OdeContacts, BoxRidesALiftingPlatformAtItsSpeed) {
+  const double vel[3] = {0.2, 0.1, 0.25}, h = 0.02;
+  OdeScene s;
+  dWorldSetGravity(s.world, 0, 0, -0.5);
+  dSpaceID space = dSimpleSpaceCreate(0);
+  dJointGroupID group = dJointGroupCreate(0);
+  dGeomID platform = dCreateBox(space, 4, 4, 1);
+  dBodyID box = s.box(0.0, 0.0, 0.5 + 0.15 + 0.01, 0.3, 0.3);
+  dGeomSetBody(dCreateBox(space, 0.3, 0.3, 0.3), box);
+  struct Lift {
+    dWorldID world;
+    dJointGroupID group;
+    dGeomID platform;
+    const double* vel;
+  } lift{s.world, group, platform, vel};
+  auto collide = [](void* data, dGeomID o1, dGeomID o2) {
+    const auto* l = static_cast<Lift*>(data);
+    dContact c[4];
+    const int n = dCollide(o1, o2, 4, &c[0].geom, sizeof(dContact));
+    for (int i = 0; i < n; ++i) {
+      dSurfaceParameters& f = c[i].surface;
+      f.mode = dContactBounce | dContactMotionN | dContactMotion1 | dContactMotion2 | dContactFDir1;
+      f.mu = 1.0;
+      f.bounce = 0.25;
+      f.bounce_vel = 0.01;
+      dVector3 d1, d2;
+      dPlaneSpace(c[i].geom.normal, d1, d2);
+      for (int k = 0; k < 3; ++k)
+        c[i].fdir1[k] = d1[k];
+      const double sign = c[i].geom.g1 == l->platform ? -1.0 : 1.0;
+      f.motion1 = dCalcVectorDot3(l->vel, d1);
+      f.motion2 = sign * dCalcVectorDot3(l->vel, d2);
+      f.motionN = sign * dCalcVectorDot3(l->vel, c[i].geom.normal);
+      dJointAttach(dJointCreateContact(l->world, l->group, c + i), dGeomGetBody(o1),
+                   dGeomGetBody(o2));
+    }
+  };
+  for (int k = 1; k <= 100; ++k) {
+    dSpaceCollide(space, &lift, collide);
+    dGeomSetPosition(platform, vel[0] * k * h, vel[1] * k * h, vel[2] * k * h);
+    stepWith(Stepper::Block, s.world, h);
+    dJointGroupEmpty(group);
+  }
+  const double depth = 0.5 + 0.15 + vel[2] * 100 * h - dBodyGetPosition(box)[2];
+  const double vz = dBodyGetLinearVel(box)[2];
+  std::printf("  riding: %.4f m/s up (platform 0.25), %.2g m into it\n", vz, depth);
+  EXPECT_NEAR(vz, vel[2], 1e-3);
+  EXPECT_LT(depth, 5e-4);
+  dJointGroupDestroy(group);
+  dSpaceDestroy(space);
 }
 
 }  // namespace
