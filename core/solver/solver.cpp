@@ -498,7 +498,9 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
         // Restitution reverses the approach speed from before this
         // (sub-)step's forces, as ODE and Box2D measure it (with gravity
         // already added the rebound came out 3% higher than ODE's).
-        const double approach = startVelocity(row, blk);  // < 0: closing
+        // A moving surface (ODE motionN, the row's target) bounces what
+        // meets it at the speed relative to it, as ODE does.
+        const double approach = startVelocity(row, blk) - row.target;  // < 0: closing
         if (row.bounce > 0.0 && approach < -row.bounceThreshold && row.C + approach * h <= 0.0) {
           // Restitution: leave at bounce times the approach speed; kept
           // through relax so the rebound survives it.
@@ -876,7 +878,7 @@ void Solver::relax(const SolverSettings& s, double h) {
       // at its approach speed. Limiting it here would make it arrive
       // slowly and lose the rebound (a hinge stop with bounce 0.5 returned
       // 0.22 of 1.30 rad/s).
-      if (row.bounce > 0.0 && v < -row.bounceThreshold) continue;
+      if (row.bounce > 0.0 && v - row.target < -row.bounceThreshold) continue;
       const double gap = row.C + h * (v - row.target);  // a moving surface moved on too
       row.biasRelax = std::max(gap, 0.0) / h - row.target;
     }

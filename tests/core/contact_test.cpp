@@ -623,6 +623,28 @@ TEST(Contact, BodyRidesASurfaceMovingAlongItsNormal) {
   EXPECT_NEAR(b.position.z() - half, lift, 5e-4);
 }
 
+// Restitution off a moving surface reverses the speed relative to it, as
+// ODE defines it: a box meeting a lift rising at 0.25 m/s at 1 m/s leaves
+// at 0.25 + 0.25 (1 + 0.25) = 0.5625 m/s (relative to the ground it met
+// the lift at 1 m/s and would leave at 0.5).
+TEST(Contact, BounceOffAMovingSurfaceIsRelativeToIt) {
+  for (int substeps : {1, 10}) {
+    World world;
+    world.setGravity(Vec3::Zero());
+    world.setSettings(SolverSettings::subStepped(substeps));
+    BodyDesc d = boxBody(Vec3(0, 0, 0.25), 1.0, Vec3(0.5, 0.5, 0.5));
+    d.linearVelocity = Vec3(0, 0, -1.0);
+    const BodyId box = world.createBody(d);
+    ContactManifold m = groundContact(world, box, 0.25);
+    m.surface.motionN = 0.25;
+    m.surface.restitution = 0.25;
+    m.surface.restitutionThreshold = 0.01;
+    world.addContact(m);
+    world.step(1.0 / 60.0);
+    EXPECT_NEAR(world.body(box).linearVelocity.z(), 0.5625, 1e-4) << substeps << " sub-steps";
+  }
+}
+
 TEST(Contact, SpeculativeContactsNeverPull) {
   // A box 1.5 cm above the ground (inside the 2 cm margin) gets contact
   // points, but falls freely until it touches: exactly g for the first
