@@ -26,7 +26,9 @@ void readAxis(dJointID j, ParamGetter get, int group, const JointWorldParams& w,
               Motor& motor) {
   const double lo = get(j, dParamLoStop + group);
   const double hi = get(j, dParamHiStop + group);
-  // ODE ignores stops when lo > hi (its setters refuse to make them so).
+  // ODE ignores stops when lo > hi: its setters take them as they come,
+  // and each joint tests its stops only when lo <= hi (demo_feedback's
+  // slider with stops 0 and -0.2 slides free, held by its motor alone).
   limit.enabled = (lo > -dInfinity || hi < dInfinity) && lo <= hi;
   limit.lo = std::isfinite(lo) ? lo : -kFarStop;
   limit.hi = std::isfinite(hi) ? hi : kFarStop;

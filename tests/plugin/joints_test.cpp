@@ -191,6 +191,32 @@ TEST(OdeJoints, SliderStopAndMotor) {
   }
 }
 
+// Stops set with lo > hi (demo_feedback sets a slider's to 0 and -0.2):
+// ODE's setters take them, and its joints test their stops only when
+// lo <= hi, so the axis is free: as with dWorldStep, at the closed form.
+TEST(OdeJoints, SliderStopsGivenTheWrongWayRoundAreIgnored) {
+  for (const double push : {9.81, -9.81}) {
+    auto build = [push](OdeScene& s) {
+      dWorldSetGravity(s.world, push, 0.0, 0.0);
+      dBodyID block = s.box(0.0, 0.0, 0.0);
+      dJointID j = s.add(dJointCreateSlider(s.world, 0), block, nullptr);
+      dJointSetSliderAxis(j, 1.0, 0.0, 0.0);
+      dJointSetSliderParam(j, dParamLoStop, 0.0);
+      dJointSetSliderParam(j, dParamHiStop, -0.2);
+    };
+    auto probe = [](OdeScene& s) {
+      return std::vector<double>{dJointGetSliderPosition(s.joints[0])};
+    };
+    const TwinRun run = runTwin(build, probe, 1.0, kStep);
+    run.report(push > 0 ? "pushed up past lo (m)" : "pushed down below lo (m)", 0);
+    // Free fall along the axis: 1/2 g t^2 = 4.905 m after 1 s (ODE's
+    // semi-implicit Euler at 60 Hz adds 1/2 g h t = 0.08 m, blockstep's
+    // sub-steps a tenth of that).
+    EXPECT_GT(TwinRun::maxOf(run.direct, 0), 4.9) << "ODE lets it fall free";
+    EXPECT_NEAR(TwinRun::maxOf(run.block, 0), 4.905, 0.01);
+  }
+}
+
 // Ball joints: a double pendulum swinging out of plane.
 TEST(OdeJoints, BallDoublePendulum) {
   auto build = [](OdeScene& s) {
