@@ -9,16 +9,12 @@
 #include "adapters/ode/contact_mapping.h"
 #include "core/body/mass.h"
 #include "core/world/world.h"
+#include "support/ode_library.h"
 
 namespace blockstep {
 namespace {
 
-class OdeLibrary : public ::testing::Environment {
- public:
-  void SetUp() override { dInitODE2(0); }
-  void TearDown() override { dCloseODE(); }
-};
-const auto* const kOde = ::testing::AddGlobalTestEnvironment(new OdeLibrary);
+const auto* const kOde = ::testing::AddGlobalTestEnvironment(new test::OdeLibrary);
 
 constexpr double kStep = 1.0 / 240.0;
 

@@ -1,0 +1,64 @@
+// Steps a comparison scene with one stepper and records, per frame, the
+// time of collision and solve apart, the joint error measured from the
+// joint geometry, the deepest contact and the kinetic energy.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "compare/ode/scene.h"
+
+namespace blockstep::compare {
+
+// A stepper and its settings, as written on the command line:
+//   quickstep:IT[xSUB]     ODE's dWorldQuickStep, IT iterations, SUB steps
+//                          of dt / SUB per frame, each with its collision
+//   direct                 ODE's dWorldStep (exact LCP), under a wall-time cap
+//   blockstep              dWorldBlockStep as a drop-in: sub-steps follow the
+//                          quickstep iterations (20: 10 sub-steps)
+//   blockstep:substep:N    the sub-stepped solver with N sub-steps
+//   blockstep:paper:IT     the paper's solver, one step, IT sweeps
+struct Stepper {
+  enum class Kind { Quick, Direct, Block } kind = Kind::Quick;
+  enum class Preset { FollowQuickStep, Substepped, Paper } preset = Preset::FollowQuickStep;
+  int iterations = 20;  // quickstep iterations; the paper solver's sweeps
+  int substeps = 1;     // per frame (quickstep); the sub-stepped solver's
+  std::string label;    // as given
+};
+
+// Throws std::invalid_argument saying what is accepted.
+Stepper parseStepper(const std::string& text);
+
+struct FrameRecord {
+  double collideSeconds = 0.0;
+  double solveSeconds = 0.0;
+  JointError joints;
+  double penetration = 0.0;  // deepest contact, m
+  int contacts = 0;
+  double kineticEnergy = 0.0;
+};
+
+struct RunResult {
+  std::string scene, stepper;
+  std::vector<FrameRecord> frames;
+  int framesAsked = 0;
+  bool exploded = false;       // a non-finite state
+  std::string stoppedBecause;  // empty when every frame ran
+  int odeMessages = 0;         // ODE's messages during the run (e.g. "LCP internal error")
+  // Summary.
+  double medianSolveMs = 0.0, medianCollideMs = 0.0;
+  double maxSeparation = 0.0, rmsSeparation = 0.0, maxAngle = 0.0;
+  double maxPenetration = 0.0;
+  double lastSecondPenetration = 0.0;  // mean deepest contact over the last second
+  double drift = 0.0;                  // the probe body's distance from its start, m
+};
+
+struct RunOptions {
+  int frames = 300;
+  double dt = 1.0 / 60.0;
+  double capSeconds = 60.0;  // wall time a dWorldStep run may take (minutes on cloth)
+};
+
+RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options);
+
+}  // namespace blockstep::compare

@@ -1,0 +1,213 @@
+// A comparison scene's world, collision and joint measurements.
+#include "compare/ode/scene.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace blockstep::compare {
+
+namespace {
+
+constexpr int kMaxContactsPerPair = 8;
+
+double length(const dReal* v) {
+  return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
+
+// A point fixed in a body (or in the world) in world coordinates.
+void worldPoint(dBodyID b, const dReal* local, dVector3 out) {
+  if (!b) {
+    out[0] = local[0], out[1] = local[1], out[2] = local[2];
+    return;
+  }
+  dBodyGetRelPointPos(b, local[0], local[1], local[2], out);
+}
+
+void worldVector(dBodyID b, const dReal* local, dVector3 out) {
+  if (!b) {
+    out[0] = local[0], out[1] = local[1], out[2] = local[2];
+    return;
+  }
+  dBodyVectorToWorld(b, local[0], local[1], local[2], out);
+}
+
+void orientation(dBodyID b, dQuaternion q) {
+  if (!b) {
+    dQSetIdentity(q);
+    return;
+  }
+  const dReal* p = dBodyGetQuaternion(b);
+  for (int k = 0; k < 4; ++k)
+    q[k] = p[k];
+}
+
+}  // namespace
+
+Scene::Scene() {
+  world_ = dWorldCreate();
+  dWorldSetGravity(world_, 0, 0, -9.81);
+  space_ = dHashSpaceCreate(nullptr);
+  contacts_ = dJointGroupCreate(0);
+}
+
+Scene::~Scene() {
+  dJointGroupDestroy(contacts_);
+  dSpaceDestroy(space_);  // destroys its geoms
+  dWorldDestroy(world_);
+}
+
+dBodyID Scene::addBody(const dMass& mass, double x, double y, double z) {
+  dBodyID b = dBodyCreate(world_);
+  dBodySetMass(b, &mass);
+  dBodySetPosition(b, x, y, z);
+  bodies_.push_back(b);
+  return b;
+}
+
+void Scene::addGeom(dGeomID geom, dBodyID body) {
+  if (body) dGeomSetBody(geom, body);
+}
+
+JointRecord& Scene::record(dJointID j, JointKind kind, dBodyID b1, dBodyID b2,
+                           const dReal* anchor) {
+  JointRecord r;
+  r.joint = j;
+  r.kind = kind;
+  r.body1 = b1;
+  r.body2 = b2;
+  dBodyGetPosRelPoint(b1, anchor[0], anchor[1], anchor[2], r.anchor1);
+  if (b2) {
+    dBodyGetPosRelPoint(b2, anchor[0], anchor[1], anchor[2], r.anchor2);
+  } else {
+    r.anchor2[0] = anchor[0], r.anchor2[1] = anchor[1], r.anchor2[2] = anchor[2];
+  }
+  dQuaternion q1, q2;
+  orientation(b1, q1);
+  orientation(b2, q2);
+  dQMultiply1(r.relative0, q1, q2);  // q1^-1 q2
+  joints_.push_back(r);
+  return joints_.back();
+}
+
+dJointID Scene::ball(dBodyID b1, dBodyID b2, double x, double y, double z) {
+  dJointID j = dJointCreateBall(world_, nullptr);
+  dJointAttach(j, b1, b2);
+  dJointSetBallAnchor(j, x, y, z);
+  const dVector3 anchor = {x, y, z};
+  record(j, JointKind::Ball, b1, b2, anchor);
+  return j;
+}
+
+dJointID Scene::hinge(dBodyID b1, dBodyID b2, const dVector3 anchor, const dVector3 axis) {
+  dJointID j = dJointCreateHinge(world_, nullptr);
+  dJointAttach(j, b1, b2);
+  dJointSetHingeAnchor(j, anchor[0], anchor[1], anchor[2]);
+  dJointSetHingeAxis(j, axis[0], axis[1], axis[2]);
+  JointRecord& r = record(j, JointKind::Hinge, b1, b2, anchor);
+  dBodyVectorFromWorld(b1, axis[0], axis[1], axis[2], r.axis1);
+  if (b2) {
+    dBodyVectorFromWorld(b2, axis[0], axis[1], axis[2], r.axis2);
+  } else {
+    r.axis2[0] = axis[0], r.axis2[1] = axis[1], r.axis2[2] = axis[2];
+  }
+  return j;
+}
+
+dJointID Scene::fixed(dBodyID b1, dBodyID b2) {
+  dJointID j = dJointCreateFixed(world_, nullptr);
+  dJointAttach(j, b1, b2);
+  dJointSetFixed(j);
+  // Anchored midway between the two centres: its separation is how far
+  // the bodies moved apart or sideways from where they were fixed.
+  const dReal* p1 = dBodyGetPosition(b1);
+  const dReal* p2 = b2 ? dBodyGetPosition(b2) : p1;
+  const dVector3 mid = {0.5 * (p1[0] + p2[0]), 0.5 * (p1[1] + p2[1]), 0.5 * (p1[2] + p2[2])};
+  record(j, JointKind::Fixed, b1, b2, mid);
+  return j;
+}
+
+void Scene::setProbe(dBodyID b) {
+  probe_ = b;
+  const dReal* p = dBodyGetPosition(b);
+  probeStart_[0] = p[0], probeStart_[1] = p[1], probeStart_[2] = p[2];
+}
+
+void Scene::nearCallback(void* data, dGeomID a, dGeomID b) {
+  auto* self = static_cast<Scene*>(data);
+  dBodyID b1 = dGeomGetBody(a);
+  dBodyID b2 = dGeomGetBody(b);
+  if (b1 && b2 && dAreConnectedExcluding(b1, b2, dJointTypeContact)) return;
+  dContact contact[kMaxContactsPerPair];
+  const int n = dCollide(a, b, kMaxContactsPerPair, &contact[0].geom, sizeof(dContact));
+  for (int i = 0; i < n; ++i) {
+    contact[i].surface.mode = dContactApprox1;
+    contact[i].surface.mu = 0.6;
+    dJointID j = dJointCreateContact(self->world_, self->contacts_, &contact[i]);
+    dJointAttach(j, b1, b2);
+    self->deepest_ = std::max(self->deepest_, static_cast<double>(contact[i].geom.depth));
+  }
+  self->contactCount_ += n;
+}
+
+double Scene::collide() {
+  contactCount_ = 0;
+  deepest_ = 0.0;
+  dSpaceCollide(space_, this, &nearCallback);
+  return deepest_;
+}
+
+JointError Scene::jointError() const {
+  JointError e;
+  for (const JointRecord& r : joints_) {
+    dVector3 p1, p2, d;
+    worldPoint(r.body1, r.anchor1, p1);
+    worldPoint(r.body2, r.anchor2, p2);
+    for (int k = 0; k < 3; ++k)
+      d[k] = p1[k] - p2[k];
+    const double sep = length(d);
+    double angle = 0.0;
+    if (r.kind == JointKind::Hinge) {
+      dVector3 a1, a2;
+      worldVector(r.body1, r.axis1, a1);
+      worldVector(r.body2, r.axis2, a2);
+      const double c = std::clamp(static_cast<double>(dCalcVectorDot3(a1, a2)), -1.0, 1.0);
+      angle = std::acos(c);
+    } else if (r.kind == JointKind::Fixed) {
+      dQuaternion q1, q2, rel, change;
+      orientation(r.body1, q1);
+      orientation(r.body2, q2);
+      dQMultiply1(rel, q1, q2);
+      dQMultiply2(change, rel, r.relative0);  // rel * relative0^-1
+      angle = 2.0 * std::acos(std::min(1.0, std::abs(static_cast<double>(change[0]))));
+    }
+    if (!std::isfinite(sep) || !std::isfinite(angle)) {
+      e.separation = e.angle = INFINITY;
+      continue;
+    }
+    e.separation = std::max(e.separation, sep);
+    e.angle = std::max(e.angle, angle);
+    e.separationSumSq += sep * sep;
+    ++e.joints;
+  }
+  return e;
+}
+
+double Scene::kineticEnergy() const {
+  double energy = 0.0;
+  for (dBodyID b : bodies_) {
+    dMass m;
+    dBodyGetMass(b, &m);
+    const dReal* v = dBodyGetLinearVel(b);
+    dVector3 w;  // body frame
+    const dReal* ww = dBodyGetAngularVel(b);
+    dBodyVectorFromWorld(b, ww[0], ww[1], ww[2], w);
+    double rotational = 0.0;
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k)
+        rotational += w[i] * m.I[i * 4 + k] * w[k];
+    energy += 0.5 * m.mass * dCalcVectorDot3(v, v) + 0.5 * rotational;
+  }
+  return energy;
+}
+
+}  // namespace blockstep::compare

@@ -1,0 +1,97 @@
+// The comparison's scenes, written once with ODE's API (bodies, geoms,
+// joints, dSpaceCollide with contact joints), so every stepper gets the
+// same input and the same collision (../shared/SCENES.md gives them).
+//
+// Each joint is recorded with its geometry at build time (anchor in each
+// body, the free axis of a hinge, the bodies' relative rotation), so its
+// error is measured the same way whatever steps the world.
+#pragma once
+
+#include <ode/ode.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace blockstep::compare {
+
+enum class JointKind { Ball, Hinge, Fixed };
+
+struct JointRecord {
+  dJointID joint = nullptr;
+  JointKind kind = JointKind::Ball;
+  dBodyID body1 = nullptr;
+  dBodyID body2 = nullptr;  // nullptr: the world
+  dVector3 anchor1{};       // in body1's frame
+  dVector3 anchor2{};       // in body2's frame (world point when body2 is the world)
+  dVector3 axis1{};         // hinge: the free axis in body1's frame
+  dVector3 axis2{};         // hinge: the same axis in body2's frame
+  dQuaternion relative0{};  // body2 in body1's frame at build time (fixed joints)
+};
+
+// What one frame's joints look like: the largest separation of the two
+// anchor points (m) and the largest angular error (rad: a hinge's axes
+// apart, a fixed joint's relative rotation).
+struct JointError {
+  double separation = 0.0;
+  double angle = 0.0;
+  double separationSumSq = 0.0;  // over all joints, for an RMS
+  int joints = 0;
+};
+
+class Scene {
+ public:
+  Scene();
+  ~Scene();
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
+
+  dWorldID world() const { return world_; }
+  dSpaceID space() const { return space_; }
+  const std::string& name() const { return name_; }
+  const std::vector<dBodyID>& bodies() const { return bodies_; }
+  const std::vector<JointRecord>& joints() const { return joints_; }
+
+  // One frame's collision: contact joints into the scene's group (at most
+  // 8 per geom pair, dContactApprox1, mu 0.6, none between jointed
+  // bodies). Returns the deepest contact (m).
+  double collide();
+  void clearContacts() { dJointGroupEmpty(contacts_); }
+  int contactCount() const { return contactCount_; }
+  JointError jointError() const;
+  double kineticEnergy() const;
+  // The body whose drift the scene reports (stacks: the top box), or null.
+  dBodyID probe() const { return probe_; }
+  const dReal* probeStart() const { return probeStart_; }
+
+  // Building (scenes.cpp).
+  void setName(std::string name) { name_ = std::move(name); }
+  dBodyID addBody(const dMass& mass, double x, double y, double z);
+  void addGeom(dGeomID geom, dBodyID body);
+  dJointID ball(dBodyID b1, dBodyID b2, double x, double y, double z);
+  dJointID hinge(dBodyID b1, dBodyID b2, const dVector3 anchor, const dVector3 axis);
+  dJointID fixed(dBodyID b1, dBodyID b2);
+  void setProbe(dBodyID b);
+
+ private:
+  static void nearCallback(void* data, dGeomID a, dGeomID b);
+  JointRecord& record(dJointID j, JointKind kind, dBodyID b1, dBodyID b2, const dReal* anchor);
+
+  std::string name_;
+  dWorldID world_ = nullptr;
+  dSpaceID space_ = nullptr;
+  dJointGroupID contacts_ = nullptr;
+  std::vector<dBodyID> bodies_;
+  std::vector<JointRecord> joints_;
+  dBodyID probe_ = nullptr;
+  dVector3 probeStart_{};
+  int contactCount_ = 0;
+  double deepest_ = 0.0;
+};
+
+// The scenes of SCENES.md by name (size: cloth's N; 0 for the default).
+// Throws std::invalid_argument naming the accepted scenes.
+std::unique_ptr<Scene> makeScene(const std::string& name, int size = 0);
+const std::vector<std::string>& sceneNames();
+
+}  // namespace blockstep::compare

@@ -1,0 +1,222 @@
+// The scenes of ../shared/SCENES.md, built with ODE's API.
+#include <cmath>
+#include <functional>
+#include <map>
+#include <stdexcept>
+
+#include "compare/ode/scene.h"
+
+namespace blockstep::compare {
+
+namespace {
+
+constexpr double kLinkLength = 0.1;  // chain links
+
+// 50 capsule links (r 0.01 m, 0.1 m long, 0.1 kg; the last 10 kg) on ball
+// joints from a world pin at z = 6: hanging, or released horizontally.
+void buildChain(Scene& s, bool horizontal) {
+  constexpr int kLinks = 50;
+  constexpr double kPinZ = 6.0;
+  dBodyID previous = nullptr;
+  for (int i = 0; i < kLinks; ++i) {
+    dMass m;
+    const double mass = i == kLinks - 1 ? 10.0 : 0.1;
+    dMassSetCapsuleTotal(&m, mass, horizontal ? 1 : 3, 0.01, kLinkLength - 0.02);
+    const double along = (i + 0.5) * kLinkLength;
+    dBodyID b =
+        horizontal ? s.addBody(m, along, 0.0, kPinZ) : s.addBody(m, 0.0, 0.0, kPinZ - along);
+    const double joint = i * kLinkLength;
+    if (horizontal) {
+      s.ball(b, previous, joint, 0.0, kPinZ);
+    } else {
+      s.ball(b, previous, 0.0, 0.0, kPinZ - joint);
+    }
+    previous = b;
+  }
+}
+
+void groundPlane(Scene& s) {
+  dCreatePlane(s.space(), 0, 0, 1, 0);
+}
+
+dBodyID box(Scene& s, double mass, double sx, double sy, double sz, double x, double y, double z) {
+  dMass m;
+  dMassSetBoxTotal(&m, mass, sx, sy, sz);
+  dBodyID b = s.addBody(m, x, y, z);
+  s.addGeom(dCreateBox(s.space(), sx, sy, sz), b);
+  return b;
+}
+
+// A capsule along z (the body's own axis).
+dBodyID capsule(Scene& s, double mass, double r, double len, double x, double y, double z) {
+  dMass m;
+  dMassSetCapsuleTotal(&m, mass, 3, r, len);
+  dBodyID b = s.addBody(m, x, y, z);
+  s.addGeom(dCreateCapsule(s.space(), r, len), b);
+  return b;
+}
+
+// 10 boxes of 0.5 m, 1 kg, exactly touching on the plane.
+void buildStack(Scene& s) {
+  groundPlane(s);
+  dBodyID top = nullptr;
+  for (int i = 0; i < 10; ++i)
+    top = box(s, 1.0, 0.5, 0.5, 0.5, 0.0, 0.0, 0.25 + 0.5 * i);
+  s.setProbe(top);
+}
+
+// A base of 20 boxes (0.5 m, 1 kg, 0.525 apart), each row half a box in.
+void buildPyramid(Scene& s) {
+  groundPlane(s);
+  constexpr int kBase = 20;
+  dBodyID top = nullptr;
+  for (int row = 0; row < kBase; ++row) {
+    const int n = kBase - row;
+    for (int i = 0; i < n; ++i) {
+      top = box(s, 1.0, 0.5, 0.5, 0.5, (i - 0.5 * (n - 1)) * 0.525, 0.0, 0.25 + 0.5 * row);
+    }
+  }
+  s.setProbe(top);
+}
+
+// Pelvis, torso, head and two thighs: hinges with stops at the waist and
+// hips, a ball at the neck; thrown at (0.5, 0.2, 0) m/s, the torso turning.
+void buildRagdoll(Scene& s) {
+  groundPlane(s);
+  const double pelvisZ = 1.2;
+  dBodyID pelvis = box(s, 10.0, 0.30, 0.20, 0.20, 0.0, 0.0, pelvisZ);
+  const double torsoZ = pelvisZ + 0.10 + 0.20;
+  dBodyID torso = box(s, 15.0, 0.34, 0.20, 0.40, 0.0, 0.0, torsoZ);
+  const double neckZ = torsoZ + 0.20;
+  dBodyID head = capsule(s, 5.0, 0.08, 0.14, 0.0, 0.0, neckZ + 0.08 + 0.07);
+  const double hipZ = pelvisZ - 0.10;
+  const double thighZ = hipZ - 0.06 - 0.19;
+  dBodyID left = capsule(s, 7.0, 0.06, 0.38, -0.08, 0.0, thighZ);
+  dBodyID right = capsule(s, 7.0, 0.06, 0.38, 0.08, 0.0, thighZ);
+  const dVector3 xAxis = {1, 0, 0};
+  const dVector3 waist = {0, 0, pelvisZ + 0.10};
+  dJointID w = s.hinge(pelvis, torso, waist, xAxis);
+  dJointSetHingeParam(w, dParamLoStop, -0.3);
+  dJointSetHingeParam(w, dParamHiStop, 0.8);
+  s.ball(torso, head, 0.0, 0.0, neckZ);
+  for (auto [thigh, x] : {std::pair{left, -0.08}, std::pair{right, 0.08}}) {
+    const dVector3 hip = {x, 0.0, hipZ};
+    dJointID h = s.hinge(pelvis, thigh, hip, xAxis);
+    dJointSetHingeParam(h, dParamLoStop, -1.2);
+    dJointSetHingeParam(h, dParamHiStop, 0.5);
+  }
+  for (dBodyID b : s.bodies())
+    dBodySetLinearVel(b, 0.5, 0.2, 0.0);
+  dBodySetAngularVel(torso, 1.0, 2.0, 0.0);
+}
+
+// N x N boxes of 0.05 m and 0.01 kg, 0.05 m apart at z = 1.5, ball joints
+// at the edge midpoints of neighbours, two corners pinned to the world;
+// a static 0.6 m cube below and the ground.
+void buildCloth(Scene& s, int n) {
+  groundPlane(s);
+  dGeomID cube = dCreateBox(s.space(), 0.6, 0.6, 0.6);
+  dGeomSetPosition(cube, 0.0, 0.0, 0.7);
+  constexpr double kCell = 0.05, kZ = 1.5;
+  std::vector<dBodyID> cells(static_cast<std::size_t>(n) * n);
+  auto at = [&](int i, int j) -> dBodyID& { return cells[static_cast<std::size_t>(i) * n + j]; };
+  auto coord = [&](int i) { return (i - 0.5 * (n - 1)) * kCell; };
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      at(i, j) = box(s, 0.01, kCell, kCell, kCell, coord(i), coord(j), kZ);
+  // Cells collide with the cube and the ground only: one space holds
+  // them, so cloth-cloth pairs are told apart by category bits.
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      dGeomID g = dBodyGetFirstGeom(at(i, j));
+      dGeomSetCategoryBits(g, 2);
+      dGeomSetCollideBits(g, 1);
+      if (i + 1 < n) s.ball(at(i, j), at(i + 1, j), coord(i) + 0.5 * kCell, coord(j), kZ);
+      if (j + 1 < n) s.ball(at(i, j), at(i, j + 1), coord(i), coord(j) + 0.5 * kCell, kZ);
+    }
+  }
+  s.ball(at(0, 0), nullptr, coord(0), coord(0), kZ);
+  s.ball(at(n - 1, 0), nullptr, coord(n - 1), coord(0), kZ);
+}
+
+// 5 x 5 x 5 boxes of 0.1 m and 0.1 kg, fixed to their axis neighbours
+// (300 joints), the lattice turned 0.4 rad about (1, 1, 0), centred at
+// z = 1, dropped on the plane.
+void buildSoftCube(Scene& s) {
+  groundPlane(s);
+  constexpr int kN = 5;
+  constexpr double kSize = 0.1;
+  dMatrix3 R;
+  dRFromAxisAndAngle(R, 1, 1, 0, 0.4);
+  std::vector<dBodyID> cells(kN * kN * kN);
+  auto at = [&](int i, int j, int k) -> dBodyID& { return cells[(i * kN + j) * kN + k]; };
+  for (int i = 0; i < kN; ++i) {
+    for (int j = 0; j < kN; ++j) {
+      for (int k = 0; k < kN; ++k) {
+        const dVector3 local = {(i - 2) * kSize, (j - 2) * kSize, (k - 2) * kSize};
+        dVector3 p;
+        dMultiply0_331(p, R, local);
+        dBodyID b = box(s, 0.1, kSize, kSize, kSize, p[0], p[1], p[2] + 1.0);
+        dBodySetRotation(b, R);
+        dGeomID g = dBodyGetFirstGeom(b);
+        dGeomSetCategoryBits(g, 2);
+        dGeomSetCollideBits(g, 1);
+        at(i, j, k) = b;
+      }
+    }
+  }
+  for (int i = 0; i < kN; ++i) {
+    for (int j = 0; j < kN; ++j) {
+      for (int k = 0; k < kN; ++k) {
+        if (i + 1 < kN) s.fixed(at(i, j, k), at(i + 1, j, k));
+        if (j + 1 < kN) s.fixed(at(i, j, k), at(i, j + 1, k));
+        if (k + 1 < kN) s.fixed(at(i, j, k), at(i, j, k + 1));
+      }
+    }
+  }
+}
+
+using Builder = std::function<void(Scene&, int)>;
+
+const std::map<std::string, Builder>& builders() {
+  static const std::map<std::string, Builder> all = {
+      {"chain", [](Scene& s, int) { buildChain(s, false); }},
+      {"chain_swing", [](Scene& s, int) { buildChain(s, true); }},
+      {"stack", [](Scene& s, int) { buildStack(s); }},
+      {"pyramid", [](Scene& s, int) { buildPyramid(s); }},
+      {"ragdoll", [](Scene& s, int) { buildRagdoll(s); }},
+      {"cloth", [](Scene& s, int n) { buildCloth(s, n > 0 ? n : 32); }},
+      {"softcube", [](Scene& s, int) { buildSoftCube(s); }},
+  };
+  return all;
+}
+
+}  // namespace
+
+const std::vector<std::string>& sceneNames() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n;
+    for (const auto& [name, build] : builders())
+      n.push_back(name);
+    return n;
+  }();
+  return names;
+}
+
+std::unique_ptr<Scene> makeScene(const std::string& name, int size) {
+  const auto it = builders().find(name);
+  if (it == builders().end()) {
+    std::string accepted;
+    for (const std::string& n : sceneNames())
+      accepted += (accepted.empty() ? "" : ", ") + n;
+    throw std::invalid_argument("unknown scene '" + name + "' (accepted: " + accepted + ")");
+  }
+  if (size < 0 || size > 256)
+    throw std::invalid_argument("scene size " + std::to_string(size) + " is not in 0..256");
+  auto scene = std::make_unique<Scene>();
+  scene->setName(name == "cloth" ? "cloth" + std::to_string(size > 0 ? size : 32) : name);
+  it->second(*scene, size);
+  return scene;
+}
+
+}  // namespace blockstep::compare
