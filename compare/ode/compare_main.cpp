@@ -21,14 +21,14 @@ void writeCsv(const std::filesystem::path& path, const RunResult& r) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write " + path.string());
   out << "frame,collide_ms,solve_ms,max_separation_m,rms_separation_m,max_angle_rad,"
-         "penetration_m,contacts,kinetic_energy_j\n";
+         "penetration_m,contacts,kinetic_energy_j,handed_to_ode\n";
   for (std::size_t f = 0; f < r.frames.size(); ++f) {
     const FrameRecord& rec = r.frames[f];
     const double rms =
         rec.joints.joints > 0 ? std::sqrt(rec.joints.separationSumSq / rec.joints.joints) : 0.0;
     out << f << ',' << rec.collideSeconds * 1e3 << ',' << rec.solveSeconds * 1e3 << ','
         << rec.joints.separation << ',' << rms << ',' << rec.joints.angle << ',' << rec.penetration
-        << ',' << rec.contacts << ',' << rec.kineticEnergy << '\n';
+        << ',' << rec.contacts << ',' << rec.kineticEnergy << ',' << rec.handedToOde << '\n';
   }
 }
 
@@ -50,12 +50,18 @@ nlohmann::json summary(const RunResult& r, double quickSolveMs) {
   j["exploded"] = r.exploded;
   j["stopped_because"] = r.stoppedBecause;
   j["ode_messages"] = r.odeMessages;
+  j["runaway_frames"] = r.runawayFrames;
+  j["ode_stepped_frames"] = r.odeSteppedFrames;
   return j;
 }
 
 std::string note(const RunResult& r) {
   std::string n = r.exploded ? "EXPLODED " : "";
   if (!r.stoppedBecause.empty() && !r.exploded) n += r.stoppedBecause + " ";
+  if (r.runawayFrames > 0)
+    n += "runaway guard fired in " + std::to_string(r.runawayFrames) + " frames ";
+  if (r.odeSteppedFrames > 0)
+    n += "ODE stepped " + std::to_string(r.odeSteppedFrames) + " frames (unsupported) ";
   if (r.odeMessages > 0) n += std::to_string(r.odeMessages) + " ODE messages";
   return n;
 }

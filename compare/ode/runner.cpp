@@ -150,9 +150,15 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
         case Stepper::Kind::Direct:
           ok = dWorldStep(w, h);
           break;
-        case Stepper::Kind::Block:
+        case Stepper::Kind::Block: {
           ok = dWorldBlockStep(w, h);
+          dBlockStepStats stats;
+          if (dWorldGetBlockStepStats(w, &stats)) {
+            rec.handedToOde += stats.handedToOde;
+            rec.steppedByOde |= stats.stepper == dBlockStepperOde;
+          }
           break;
+        }
       }
       const auto t2 = Clock::now();
       scene.clearContacts();
@@ -202,6 +208,8 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
     r.maxAngle = std::max(r.maxAngle, rec.joints.angle);
     r.maxPenetration = std::max(r.maxPenetration, rec.penetration);
     sumSq += rec.joints.separationSumSq;
+    r.runawayFrames += rec.handedToOde > 0;
+    r.odeSteppedFrames += rec.steppedByOde;
     samples += rec.joints.joints;
     if (f + lastSecond >= r.frames.size()) {
       lastPen += rec.penetration;

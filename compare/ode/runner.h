@@ -36,6 +36,11 @@ struct FrameRecord {
   double penetration = 0.0;  // deepest contact, m
   int contacts = 0;
   double kineticEnergy = 0.0;
+  // blockstep: bodies its runaway guard handed to ODE's stepper this
+  // frame; whole frames ODE stepped because blockstep does not cover the
+  // content.
+  int handedToOde = 0;
+  bool steppedByOde = false;
 };
 
 struct RunResult {
@@ -43,6 +48,8 @@ struct RunResult {
   std::vector<FrameRecord> frames;
   int framesAsked = 0;
   bool exploded = false;       // a non-finite state
+  int runawayFrames = 0;       // blockstep: frames its guard handed an island to ODE
+  int odeSteppedFrames = 0;    // blockstep: frames ODE stepped instead (unsupported content)
   std::string stoppedBecause;  // empty when every frame ran
   int odeMessages = 0;         // ODE's messages during the run (e.g. "LCP internal error")
   // Summary.

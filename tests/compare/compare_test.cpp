@@ -3,8 +3,10 @@
 // names them, and runs that measure what each stepper does.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
+#include "blockstep/blockstep_ode.h"
 #include "compare/ode/runner.h"
 #include "support/ode_library.h"
 
@@ -136,6 +138,22 @@ TEST(CompareRuns, SubStepsCollideEachTimeAndDriftIsTheTopBoxs) {
   EXPECT_LT(r.drift, 0.01);
   EXPECT_LT(r.maxPenetration, 0.01);
   EXPECT_GT(r.frames.back().contacts, 0);
+}
+
+// A run says when blockstep's runaway guard handed an island to ODE:
+// here a speed limit of 0.5 m/s that the released chain soon passes.
+TEST(CompareRuns, RunawayGuardFramesAreCounted) {
+  auto s = makeScene("chain_swing");
+  dWorldSetBlockRunawayLimits(s->world(), 100.0, 0.5);
+  RunOptions o;
+  o.frames = 30;
+  const RunResult r = run(*s, parseStepper("blockstep"), o);
+  EXPECT_GT(r.runawayFrames, 0);
+  EXPECT_LT(r.runawayFrames, 30) << "the first frames are slower than the limit";
+  int handed = 0;
+  for (const FrameRecord& f : r.frames)
+    handed = std::max(handed, f.handedToOde);
+  EXPECT_EQ(handed, 50) << "the whole chain is one island";
 }
 
 }  // namespace
