@@ -8,7 +8,7 @@ packages=(
   build-essential cmake pkg-config clang-format dpkg-dev
   libeigen3-dev libccd-dev libode-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libcli11-dev nlohmann-json3-dev
+  libcli11-dev nlohmann-json3-dev python3-matplotlib
 )
 
 # ODE's own unit tests and demos (tests/ode_compat) are built from ODE's

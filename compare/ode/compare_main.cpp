@@ -55,6 +55,54 @@ nlohmann::json summary(const RunResult& r, double quickSolveMs) {
   return j;
 }
 
+// Every setting of the error-versus-cost study: quickstep's iterations x
+// sub-steps grid (the real rival at equal time) and blockstep's sub-steps.
+std::vector<std::string> costGrid() {
+  std::vector<std::string> grid;
+  for (int it : {10, 20, 50})
+    for (int sub : {1, 2, 4, 10})
+      grid.push_back("quickstep:" + std::to_string(it) +
+                     (sub > 1 ? "x" + std::to_string(sub) : ""));
+  for (int n : {2, 5, 10, 20, 40})
+    grid.push_back("blockstep:substep:" + std::to_string(n));
+  return grid;
+}
+
+// The error a scene is judged by: joint separation, or for a stack of
+// boxes (no joints) how far its top box drifted.
+double sceneError(const RunResult& r, bool hasJoints) {
+  return hasJoints ? r.maxSeparation : r.drift;
+}
+
+// How many quickstep settings some blockstep setting beats at no more
+// solve time: lower error and no deeper settled penetration (the last
+// second's mean deepest contact, 0.1 mm slack).
+void reportBeaten(const std::vector<RunResult>& results, const std::vector<Stepper>& steppers,
+                  bool hasJoints) {
+  int quick = 0, beaten = 0;
+  for (std::size_t q = 0; q < results.size(); ++q) {
+    if (steppers[q].kind != Stepper::Kind::Quick || !results[q].stoppedBecause.empty()) continue;
+    ++quick;
+    for (std::size_t b = 0; b < results.size(); ++b) {
+      const RunResult& B = results[b];
+      const RunResult& Q = results[q];
+      if (steppers[b].kind != Stepper::Kind::Block || !B.stoppedBecause.empty()) continue;
+      if (B.medianSolveMs <= Q.medianSolveMs &&
+          sceneError(B, hasJoints) < sceneError(Q, hasJoints) &&
+          B.lastSecondPenetration <= Q.lastSecondPenetration + 1e-4) {
+        ++beaten;
+        break;
+      }
+    }
+  }
+  if (quick > 0)
+    std::printf(
+        "%-12s %d of %d quickstep settings beaten by blockstep at no more solve time "
+        "(lower %s, no deeper settled contact)\n",
+        results.front().scene.c_str(), beaten, quick,
+        hasJoints ? "joint separation" : "top-box drift");
+}
+
 std::string note(const RunResult& r) {
   std::string n = r.exploded ? "EXPLODED " : "";
   if (!r.stoppedBecause.empty() && !r.exploded) n += r.stoppedBecause + " ";
@@ -97,7 +145,12 @@ int main(int argc, char** argv) {
   app.add_option("--cap", options.capSeconds, "wall-time cap of a dWorldStep run, s")
       ->check(CLI::Range(0.001, 86400.0));
   app.add_option("--out", out, "folder for one CSV per run and summary.json");
+  bool grid = false;
+  app.add_flag("--grid", grid,
+               "error versus cost: quickstep 10/20/50 iterations x 1/2/4/10 sub-steps and "
+               "blockstep 2/5/10/20/40 sub-steps, in place of --stepper");
   CLI11_PARSE(app, argc, argv);
+  if (grid) steppers = costGrid();
 
   dInitODE2(0);
   // quickstep and direct are ODE's own here, whatever BLOCKSTEP_REPLACE says.
@@ -129,13 +182,23 @@ int main(int argc, char** argv) {
       if (s.kind == Stepper::Kind::Quick && s.iterations == 20 && s.substeps == 1)
         quickSolveMs = results.back().medianSolveMs;
     }
+    const bool hasJoints = !makeScene(name, size)->joints().empty();
     for (const RunResult& r : results) {
       const double ratio = quickSolveMs > 0.0 ? r.medianSolveMs / quickSolveMs : 0.0;
       std::printf("%-12s %-22s %7zu %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f  %s\n",
                   r.scene.c_str(), r.stepper.c_str(), r.frames.size(), r.medianSolveMs, ratio,
                   r.medianCollideMs, r.maxSeparation * 1e3, r.rmsSeparation * 1e3,
                   r.maxPenetration * 1e3, r.drift * 1e3, note(r).c_str());
-      all.push_back(summary(r, quickSolveMs));
+      nlohmann::json j = summary(r, quickSolveMs);
+      const Stepper& st = parsed[static_cast<std::size_t>(&r - results.data())];
+      j["kind"] = st.kind == Stepper::Kind::Quick    ? "quickstep"
+                  : st.kind == Stepper::Kind::Direct ? "direct"
+                                                     : "blockstep";
+      j["iterations"] = st.iterations;
+      j["substeps"] = st.substeps;
+      j["error_m"] = sceneError(r, hasJoints);
+      j["error_is"] = hasJoints ? "max joint separation" : "top-box drift";
+      all.push_back(j);
       if (!out.empty()) {
         std::string file = r.scene + "_" + r.stepper + ".csv";
         for (char& c : file)
@@ -143,6 +206,7 @@ int main(int argc, char** argv) {
         writeCsv(std::filesystem::path(out) / file, r);
       }
     }
+    reportBeaten(results, parsed, hasJoints);
   }
   if (!out.empty()) {
     std::ofstream json(std::filesystem::path(out) / "summary.json");
