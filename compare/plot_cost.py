@@ -2,8 +2,9 @@
 """Error versus cost plots from blockstep-compare's summary.json.
 
 One PNG per scene: the scene's error (max joint separation, or a stack's
-top-box drift) and the settled penetration (the last second's mean deepest
-contact) against the median solve time per frame, log-log. Quickstep's
+top-box drift) and, where there are contacts, the settled penetration (the
+last second's mean deepest contact) against the median solve time per
+frame, log-log. Quickstep's
 iterations x sub-steps grid is drawn as one line per iteration count
 through its sub-step counts, blockstep's sub-step settings as one line:
 a setting below and left of another is better at no more cost.
@@ -42,11 +43,14 @@ def series(runs):
 
 
 def plot_scene(scene, runs, out_dir):
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    contacts = any(r["max_penetration_m"] > 0 for r in runs)
+    fields = ("error_m", "last_second_penetration_m") if contacts else ("error_m",)
+    fig, axes = plt.subplots(1, len(fields), figsize=(5.5 * len(fields), 4.5), squeeze=False)
+    axes = axes[0]
     for label, rs in series(runs):
         x = [r["median_solve_ms"] for r in rs]
         style = "o-" if label.startswith("quickstep") else "s-"
-        for ax, field in zip(axes, ("error_m", "last_second_penetration_m")):
+        for ax, field in zip(axes, fields):
             y = [max(r[field] * 1e3, FLOOR * 1e3) for r in rs]
             ax.plot(x, y, style, label=label)
             for r, xi, yi in zip(rs, x, y):
