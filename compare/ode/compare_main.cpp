@@ -12,6 +12,7 @@
 
 #include "blockstep/blockstep_ode.h"
 #include "compare/ode/runner.h"
+#include "compare/ode/scene_file.h"
 
 namespace {
 
@@ -103,6 +104,12 @@ void reportBeaten(const std::vector<RunResult>& results, const std::vector<Stepp
         hasJoints ? "joint separation" : "top-box drift");
 }
 
+// A built-in scene by name, or "file:PATH" read from a scene file.
+std::unique_ptr<Scene> buildScene(const std::string& spec, int size) {
+  if (spec.rfind("file:", 0) == 0) return loadSceneFile(spec.substr(5));
+  return makeScene(spec, size);
+}
+
 std::string note(const RunResult& r) {
   std::string n = r.exploded ? "EXPLODED " : "";
   if (!r.stoppedBecause.empty() && !r.exploded) n += r.stoppedBecause + " ";
@@ -136,6 +143,13 @@ int main(int argc, char** argv) {
   for (const std::string& n : sceneNames())
     sceneHelp += " " + n;
   app.add_option("--scene", scenes, sceneHelp);
+  std::vector<std::string> sceneFiles;
+  app.add_option("--scene-file", sceneFiles,
+                 "a scene of your own, a JSON file as --save-scenes writes (repeatable; "
+                 "replaces the default scenes)");
+  std::string saveScenes;
+  app.add_option("--save-scenes", saveScenes,
+                 "write each --scene as DIR/<name>.json (the scene file format) and stop");
   app.add_option("--stepper", steppers,
                  "stepper (repeatable): quickstep:IT[xSUB], direct, blockstep, "
                  "blockstep:substep:N, blockstep:paper:IT");
@@ -159,12 +173,26 @@ int main(int argc, char** argv) {
   try {
     for (const std::string& s : steppers)
       parsed.push_back(parseStepper(s));
+    if (!sceneFiles.empty() && app.count("--scene") == 0) scenes.clear();
+    for (const std::string& f : sceneFiles)
+      scenes.push_back("file:" + f);
     for (const std::string& s : scenes)
-      makeScene(s, size);  // names checked before anything runs
+      buildScene(s, size);  // names and files checked before anything runs
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "blockstep-compare: %s\n", e.what());
     dCloseODE();
     return 2;
+  }
+  if (!saveScenes.empty()) {
+    std::filesystem::create_directories(saveScenes);
+    for (const std::string& name : scenes) {
+      auto scene = buildScene(name, size);
+      const auto path = std::filesystem::path(saveScenes) / (scene->name() + ".json");
+      saveSceneFile(*scene, path.string());
+      std::printf("wrote %s\n", path.c_str());
+    }
+    dCloseODE();
+    return 0;
   }
   if (!out.empty()) std::filesystem::create_directories(out);
 
@@ -177,12 +205,12 @@ int main(int argc, char** argv) {
     double quickSolveMs = 0.0;
     std::vector<RunResult> results;
     for (const Stepper& s : parsed) {
-      auto scene = makeScene(name, size);
+      auto scene = buildScene(name, size);
       results.push_back(run(*scene, s, options));
       if (s.kind == Stepper::Kind::Quick && s.iterations == 20 && s.substeps == 1)
         quickSolveMs = results.back().medianSolveMs;
     }
-    const bool hasJoints = !makeScene(name, size)->joints().empty();
+    const bool hasJoints = !buildScene(name, size)->joints().empty();
     for (const RunResult& r : results) {
       const double ratio = quickSolveMs > 0.0 ? r.medianSolveMs / quickSolveMs : 0.0;
       std::printf("%-12s %-22s %7zu %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f  %s\n",

@@ -5,9 +5,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include "blockstep/blockstep_ode.h"
 #include "compare/ode/runner.h"
+#include "compare/ode/scene_file.h"
 #include "support/ode_library.h"
 
 namespace blockstep::compare {
@@ -154,6 +156,90 @@ TEST(CompareRuns, RunawayGuardFramesAreCounted) {
   for (const FrameRecord& f : r.frames)
     handed = std::max(handed, f.handedToOde);
   EXPECT_EQ(handed, 50) << "the whole chain is one island";
+}
+
+// Scenes as data: a built-in scene written to JSON and read back steps
+// exactly as the original, frame by frame, under quickstep and blockstep.
+TEST(CompareSceneFiles, WrittenAndReadBackStepAlike) {
+  RunOptions o;
+  o.frames = 30;
+  for (const char* name : {"chain", "ragdoll", "stack", "cloth", "softcube"}) {
+    const auto original = makeScene(name, 6);
+    const auto copy = sceneFromJson(sceneToJson(*original));
+    EXPECT_EQ(copy->name(), original->name());
+    ASSERT_EQ(copy->bodies().size(), original->bodies().size()) << name;
+    ASSERT_EQ(copy->joints().size(), original->joints().size()) << name;
+    for (const char* stepper : {"quickstep:20", "blockstep"}) {
+      auto a = makeScene(name, 6);
+      auto b = sceneFromJson(sceneToJson(*a));
+      const RunResult ra = run(*a, parseStepper(stepper), o);
+      const RunResult rb = run(*b, parseStepper(stepper), o);
+      ASSERT_EQ(ra.frames.size(), rb.frames.size());
+      for (std::size_t f = 0; f < ra.frames.size(); ++f) {
+        EXPECT_EQ(ra.frames[f].joints.separation, rb.frames[f].joints.separation) << name;
+        EXPECT_EQ(ra.frames[f].penetration, rb.frames[f].penetration) << name;
+        EXPECT_EQ(ra.frames[f].kineticEnergy, rb.frames[f].kineticEnergy) << name << " " << stepper;
+      }
+      EXPECT_EQ(ra.drift, rb.drift);
+    }
+  }
+}
+
+// A bad scene file is refused with the field it is about.
+TEST(CompareSceneFiles, BadFieldsAreNamed) {
+  const nlohmann::json good = sceneToJson(*makeScene("ragdoll"));
+  struct Case {
+    std::function<void(nlohmann::json&)> spoil;
+    const char* message;
+  };
+  const Case cases[] = {
+      {[](nlohmann::json& j) { j["bodies"][0]["mass"]["total"] = -1.0; },
+       "bodies[0].mass.total: must be > 0"},
+      {[](nlohmann::json& j) { j["bodies"][1].erase("position"); }, "bodies[1].position: missing"},
+      {[](nlohmann::json& j) { j["bodies"][0]["mass"]["inertia"] = {1, 1, 1, 2, 0, 0}; },
+       "bodies[0].mass.inertia: must be positive definite"},
+      {[](nlohmann::json& j) { j["bodies"][2]["geoms"][0]["type"] = "cone"; },
+       "bodies[2].geoms[0].type: 'cone' is not box"},
+      {[](nlohmann::json& j) {
+         j["joints"][0]["bodies"] = {0, 7};
+       },
+       "joints[0].bodies[1]: 7 is not a body"},
+      {[](nlohmann::json& j) {
+         j["joints"][0]["bodies"] = {1, 1};
+       },
+       "joints[0].bodies: a joint needs two different bodies"},
+      {[](nlohmann::json& j) {
+         j["joints"][0]["axis"] = {0, 0, 0};
+       },
+       "joints[0].axis: must not be zero"},
+      {[](nlohmann::json& j) { j["joints"][1]["type"] = "slider"; },
+       "joints[1].type: 'slider' is not ball, hinge or fixed"},
+      {[](nlohmann::json& j) {
+         j["gravity"] = {0, 0};
+       },
+       "gravity: must be an array of 3"},
+      {[](nlohmann::json& j) {
+         j["static"][0]["normal"] = {0, 0, "up"};
+       },
+       "static[0].normal[2]: must be a number"},
+  };
+  for (const Case& c : cases) {
+    nlohmann::json j = good;
+    c.spoil(j);
+    try {
+      sceneFromJson(j);
+      ADD_FAILURE() << c.message << ": accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(c.message), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_NO_THROW(sceneFromJson(good));
+  try {
+    loadSceneFile("/nonexistent/scene.json");
+    ADD_FAILURE() << "a missing file was read";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot be read"), std::string::npos);
+  }
 }
 
 }  // namespace

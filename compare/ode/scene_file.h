@@ -1,0 +1,44 @@
+// Scenes as data: a JSON file a built-in scene can be written to and a
+// user's own scene read from (blockstep-compare --save-scenes, --scene-file).
+//
+// {
+//   "name": "my_scene",
+//   "gravity": [0, 0, -9.81], "erp": 0.2, "cfm": 1e-5,
+//   "bodies": [
+//     { "position": [x, y, z], "quaternion": [w, x, y, z],          (optional)
+//       "linear_velocity": [..], "angular_velocity": [..],           (optional)
+//       "mass": { "total": m, "center": [..], "inertia": [I11, I22, I33, I12, I13, I23] },
+//       "geoms": [ { "type": "box", "size": [sx, sy, sz] },          (optional)
+//                  { "type": "sphere", "radius": r },
+//                  { "type": "capsule" | "cylinder", "radius": r, "length": l },
+//                  ... each with optional "category_bits", "collide_bits" ] } ],
+//   "static": [ { "type": "plane", "normal": [a, b, c], "offset": d },
+//               { "type": "box", "size": [..], "position": [..], "quaternion": [..] } ],
+//   "joints": [ { "type": "ball", "bodies": [i, j], "anchor": [..] },   (j = -1: the world)
+//               { "type": "hinge", "bodies": [i, j], "anchor": [..], "axis": [..],
+//                 "lo": -0.3, "hi": 0.8 },                             (stops optional)
+//               { "type": "fixed", "bodies": [i, j] } ],               (fixed where they are)
+//   "probe": k                                                          (optional: drift of body k)
+// }
+//
+// Capsules and cylinders lie along the body's z axis, as ODE makes them.
+// Every error names the field: "bodies[3].mass.total: must be > 0".
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <memory>
+#include <string>
+
+#include "compare/ode/scene.h"
+
+namespace blockstep::compare {
+
+nlohmann::json sceneToJson(const Scene& scene);
+// Throws std::invalid_argument naming the bad field.
+std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& json);
+
+void saveSceneFile(const Scene& scene, const std::string& path);
+std::unique_ptr<Scene> loadSceneFile(const std::string& path);
+
+}  // namespace blockstep::compare
