@@ -122,8 +122,10 @@ void normalizedQuaternion(const Reader& r, const json& j, dQuaternion q) {
   r.at("quaternion").vector(j.at("quaternion"), 4, q);
   const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
   if (n < 1e-9) r.at("quaternion").fail("must not be zero");
-  for (int k = 0; k < 4; ++k)
-    q[k] /= n;
+  if (std::abs(n - 1.0) > 1e-12) {  // a written one reads back bit for bit
+    for (int k = 0; k < 4; ++k)
+      q[k] /= n;
+  }
 }
 
 dGeomID makeGeom(const Reader& r, const json& j, dSpaceID space) {

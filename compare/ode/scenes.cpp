@@ -1,4 +1,5 @@
 // The scenes of ../shared/SCENES.md, built with ODE's API.
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -176,6 +177,48 @@ void buildSoftCube(Scene& s) {
   }
 }
 
+// A static head sphere (r 0.1 m at z = 1.6) with 64 strands of 16
+// capsules (r 4 mm, 2 cm long, 1 g) on ball joints, rooted by a ball pin
+// at Fibonacci points of the upper half of the head and standing straight
+// out along its normal. Capsules collide with the head, the root ones and
+// hair-hair pairs not.
+void buildHair(Scene& s) {
+  constexpr int kStrands = 64, kSegments = 16;
+  constexpr double kHeadR = 0.1, kHeadZ = 1.6, kSegLen = 0.02, kSegR = 0.004;
+  dGeomID head = dCreateSphere(s.space(), kHeadR);
+  dGeomSetPosition(head, 0.0, 0.0, kHeadZ);
+  dGeomSetCategoryBits(head, 1);
+  const double golden = M_PI * (3.0 - std::sqrt(5.0));
+  for (int k = 0; k < kStrands; ++k) {
+    const double z = 1.0 - (k + 0.5) / kStrands;  // upper half: cos of the polar angle
+    const double r = std::sqrt(1.0 - z * z);
+    const double n[3] = {r * std::cos(golden * k), r * std::sin(golden * k), z};
+    dQuaternion q;  // the capsule's z axis along n
+    const double angle = std::acos(std::min(1.0, z));
+    if (angle > 1e-12) {
+      dQFromAxisAndAngle(q, -n[1], n[0], 0.0, angle);  // axis z x n
+    } else {
+      dQSetIdentity(q);
+    }
+    dBodyID previous = nullptr;
+    for (int i = 0; i < kSegments; ++i) {
+      auto along = [&](double d, int c) { return (c == 2 ? kHeadZ : 0.0) + n[c] * (kHeadR + d); };
+      const double mid = (i + 0.5) * kSegLen;
+      dMass m;
+      dMassSetCapsuleTotal(&m, 0.001, 3, kSegR, kSegLen - 2 * kSegR);
+      dBodyID b = s.addBody(m, along(mid, 0), along(mid, 1), along(mid, 2));
+      dBodySetQuaternion(b, q);
+      dGeomID g = dCreateCapsule(s.space(), kSegR, kSegLen - 2 * kSegR);
+      s.addGeom(g, b);
+      dGeomSetCategoryBits(g, 2);
+      dGeomSetCollideBits(g, i == 0 ? 0 : 1);
+      const double joint = i * kSegLen;
+      s.ball(b, previous, along(joint, 0), along(joint, 1), along(joint, 2));
+      previous = b;
+    }
+  }
+}
+
 using Builder = std::function<void(Scene&, int)>;
 
 const std::map<std::string, Builder>& builders() {
@@ -187,6 +230,7 @@ const std::map<std::string, Builder>& builders() {
       {"ragdoll", [](Scene& s, int) { buildRagdoll(s); }},
       {"cloth", [](Scene& s, int n) { buildCloth(s, n > 0 ? n : 32); }},
       {"softcube", [](Scene& s, int) { buildSoftCube(s); }},
+      {"hair", [](Scene& s, int) { buildHair(s); }},
   };
   return all;
 }
