@@ -77,6 +77,39 @@ bool finiteState(const Scene& scene) {
   return true;
 }
 
+// The joint rows of the scene's largest island (bodies joined by joints;
+// a joint to the world joins nothing): what dWorldStep factors at once.
+int largestIslandRows(const Scene& scene) {
+  const auto& bodies = scene.bodies();
+  std::vector<int> parent(bodies.size()), rows(bodies.size(), 0);
+  for (std::size_t i = 0; i < parent.size(); ++i)
+    parent[i] = static_cast<int>(i);
+  auto find = [&](int i) {
+    while (parent[i] != i)
+      i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  auto index = [&](dBodyID b) {
+    return static_cast<int>(std::find(bodies.begin(), bodies.end(), b) - bodies.begin());
+  };
+  for (const JointRecord& j : scene.joints()) {
+    const int n = j.kind == JointKind::Ball ? 3 : j.kind == JointKind::Hinge ? 5 : 6;
+    const int a = find(index(j.body1));
+    if (j.body2) {
+      const int b = find(index(j.body2));
+      if (a != b) {
+        parent[b] = a;
+        rows[a] += rows[b];
+      }
+    }
+    rows[a] += n;
+  }
+  int largest = 0;
+  for (std::size_t i = 0; i < parent.size(); ++i)
+    if (parent[i] == static_cast<int>(i)) largest = std::max(largest, rows[i]);
+  return largest;
+}
+
 }  // namespace
 
 Stepper parseStepper(const std::string& text) {
@@ -122,6 +155,14 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
   r.framesAsked = options.frames;
   r.frames.reserve(options.frames);
   const dWorldID w = scene.world();
+  if (stepper.kind == Stepper::Kind::Direct) {
+    const int rows = largestIslandRows(scene);
+    if (rows > options.directRowLimit) {
+      r.stoppedBecause = "not run: an island of " + std::to_string(rows) +
+                         " joint rows (dWorldStep takes 15-18 s a frame at 5952)";
+      return r;
+    }
+  }
   configure(w, stepper);
   odeMessages = 0;
   // Quickstep shuffles its rows with ODE's random numbers: every run

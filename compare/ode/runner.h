@@ -64,6 +64,9 @@ struct RunOptions {
   int frames = 300;
   double dt = 1.0 / 60.0;
   double capSeconds = 60.0;  // wall time a dWorldStep run may take (minutes on cloth)
+  // dWorldStep is not run on an island of more joint rows than this: its
+  // dense factorization took 15-18 s for one frame of cloth32 (5952 rows).
+  int directRowLimit = 3000;
 };
 
 RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options);

@@ -145,6 +145,20 @@ TEST(CompareRuns, SubStepsCollideEachTimeAndDriftIsTheTopBoxs) {
   EXPECT_GT(r.frames.back().contacts, 0);
 }
 
+// dWorldStep is not run on an island too large for its dense solve
+// (cloth32: 5958 rows, 15-18 s a frame); a small cloth it steps.
+TEST(CompareRuns, DirectSolverSkipsIslandsTooLargeForIt) {
+  RunOptions o;
+  o.frames = 2;
+  auto big = makeScene("cloth", 32);
+  const RunResult skipped = run(*big, parseStepper("direct"), o);
+  EXPECT_TRUE(skipped.frames.empty());
+  EXPECT_NE(skipped.stoppedBecause.find("not run: an island of 5958 joint rows"), std::string::npos)
+      << skipped.stoppedBecause;
+  auto small = makeScene("cloth", 8);
+  EXPECT_EQ(run(*small, parseStepper("direct"), o).frames.size(), 2u);
+}
+
 // A run says when blockstep's runaway guard handed an island to ODE:
 // here a speed limit of 0.5 m/s that the released chain soon passes.
 TEST(CompareRuns, RunawayGuardFramesAreCounted) {
