@@ -1,6 +1,7 @@
 // The scenes of ../shared/SCENES.md, built with ODE's API.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <stdexcept>
@@ -219,6 +220,51 @@ void buildHair(Scene& s) {
   }
 }
 
+// demo_I's construction: a light anchor (a 0.1 m box of 0.1 kg) carrying
+// ten heavier particles (0.1-1.1 kg, within 0.5 m) on ball joints, its
+// centre of mass at the anchor, spinning free of gravity: per-joint
+// Gauss-Seidel diverges on it. Masses and places come from a fixed
+// sequence, so every run builds the same star.
+void buildStar(Scene& s) {
+  dWorldSetGravity(s.world(), 0, 0, 0);
+  constexpr int kParticles = 10;
+  std::uint32_t state = 12345;  // a small linear congruential sequence in [0, 1)
+  auto next = [&state] {
+    state = state * 1664525u + 1013904223u;
+    return (state >> 8) / double(1 << 24);
+  };
+  double mass[kParticles], p[kParticles][3], centre[3] = {0, 0, 0}, total = 0.0;
+  for (int i = 0; i < kParticles; ++i) {
+    mass[i] = next() + 0.1;
+    for (double& c : p[i])
+      c = next() - 0.5;
+    total += mass[i];
+    for (int k = 0; k < 3; ++k)
+      centre[k] += mass[i] * p[i][k];
+  }
+  const double anchorZ = 1.0;
+  dMass m;
+  dMassSetBoxTotal(&m, 0.1, 0.1, 0.1, 0.1);
+  dBodyID anchor = s.addBody(m, 0.0, 0.0, anchorZ);
+  for (int i = 0; i < kParticles; ++i) {
+    double at[3];
+    for (int k = 0; k < 3; ++k)
+      at[k] = p[i][k] - centre[k] / total;
+    dMassSetBoxTotal(&m, mass[i], 0.1, 0.1, 0.1);
+    dBodyID b = s.addBody(m, at[0], at[1], at[2] + anchorZ);
+    s.ball(anchor, b, at[0], at[1], at[2] + anchorZ);
+  }
+  // The whole star turning about a skew axis at 1 rad/s.
+  const double w[3] = {0.3, 0.5, 0.8};
+  for (dBodyID b : s.bodies()) {
+    const dReal* x = dBodyGetPosition(b);
+    const double r[3] = {x[0], x[1], x[2] - anchorZ};
+    dBodySetLinearVel(b, w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2],
+                      w[0] * r[1] - w[1] * r[0]);
+    dBodySetAngularVel(b, w[0], w[1], w[2]);
+  }
+}
+
 using Builder = std::function<void(Scene&, int)>;
 
 const std::map<std::string, Builder>& builders() {
@@ -231,6 +277,7 @@ const std::map<std::string, Builder>& builders() {
       {"cloth", [](Scene& s, int n) { buildCloth(s, n > 0 ? n : 32); }},
       {"softcube", [](Scene& s, int) { buildSoftCube(s); }},
       {"hair", [](Scene& s, int) { buildHair(s); }},
+      {"star", [](Scene& s, int) { buildStar(s); }},
   };
   return all;
 }

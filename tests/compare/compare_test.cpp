@@ -29,6 +29,9 @@ TEST(CompareScenes, BuiltAsScenesMdSays) {
   const auto hair = makeScene("hair");
   EXPECT_EQ(hair->bodies().size(), 64u * 16);
   EXPECT_EQ(hair->joints().size(), 64u * 16);  // 15 links and a root pin per strand
+  const auto star = makeScene("star");
+  EXPECT_EQ(star->bodies().size(), 11u);
+  EXPECT_EQ(star->joints().size(), 10u);
   const auto ragdoll = makeScene("ragdoll");
   EXPECT_EQ(ragdoll->bodies().size(), 5u);
   EXPECT_EQ(ragdoll->joints().size(), 4u);
