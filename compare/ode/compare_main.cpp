@@ -4,6 +4,8 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -200,13 +202,28 @@ int main(int argc, char** argv) {
   std::printf("%-12s %-22s %7s %10s %10s %9s %12s %12s %10s %10s  %s\n", "scene", "stepper",
               "frames", "solve ms", "x qs20", "coll ms", "max sep mm", "rms sep mm", "pen mm",
               "drift mm", "note");
+  // A progress line on a terminal for runs longer than a second.
+  const bool terminal = isatty(fileno(stderr)) != 0;
+  double lastShown = 0.0;
+  std::string running;
+  if (terminal) {
+    options.onFrame = [&](int done, double elapsed) {
+      if (elapsed < 1.0 || elapsed - lastShown < 0.1) return;
+      lastShown = elapsed;
+      std::fprintf(stderr, "\r%s: frame %d of %d (%.0f s)   ", running.c_str(), done,
+                   options.frames, elapsed);
+    };
+  }
   for (const std::string& name : scenes) {
     // Quickstep 20 first when asked for, so the others can be read against it.
     double quickSolveMs = 0.0;
     std::vector<RunResult> results;
     for (const Stepper& s : parsed) {
       auto scene = buildScene(name, size);
+      running = scene->name() + " " + s.label;
+      lastShown = 0.0;
       results.push_back(run(*scene, s, options));
+      if (terminal && lastShown > 0.0) std::fprintf(stderr, "\r%*s\r", 70, "");
       if (s.kind == Stepper::Kind::Quick && s.iterations == 20 && s.substeps == 1)
         quickSolveMs = results.back().medianSolveMs;
     }

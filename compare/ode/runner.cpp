@@ -209,6 +209,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
     rec.joints = scene.jointError();
     rec.kineticEnergy = scene.kineticEnergy();
     r.frames.push_back(rec);
+    if (options.onFrame) options.onFrame(f + 1, seconds(start, Clock::now()));
     if (!ok) {
       r.stoppedBecause =
           "the stepper refused frame " + std::to_string(f) +

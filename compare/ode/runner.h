@@ -3,6 +3,7 @@
 // joint geometry, the deepest contact and the kinetic energy.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -67,6 +68,9 @@ struct RunOptions {
   // dWorldStep is not run on an island of more joint rows than this: its
   // dense factorization took 15-18 s for one frame of cloth32 (5952 rows).
   int directRowLimit = 3000;
+  // Called after each frame with the frames done and the seconds spent
+  // (the command line's progress line); may be empty.
+  std::function<void(int, double)> onFrame;
 };
 
 RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options);
