@@ -106,6 +106,16 @@ struct Reader {
     if (!(v > 0.0)) fail("must be > 0");
     return v;
   }
+  // j[key] when it must be an array (nullptr when it may be and is absent).
+  const json* array(const json& j, const char* key, bool required) const {
+    if (!j.contains(key)) {
+      if (required) at(key).fail("missing");
+      return nullptr;
+    }
+    const json& a = j.at(key);
+    if (!a.is_array()) at(key).fail("must be an array");
+    return &a;
+  }
   std::string text(const json& j) const {
     if (!j.is_string()) fail("must be a string");
     return j.get<std::string>();
@@ -271,9 +281,8 @@ std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
     if (cfm < 0) root.at("cfm").fail("must be >= 0");
     dWorldSetCFM(s->world(), cfm);
   }
-  const json& bodies = root.field(j, "bodies");
+  const json& bodies = *root.array(j, "bodies", true);
   const Reader rb = root.at("bodies");
-  if (!bodies.is_array()) rb.fail("must be an array");
   for (std::size_t i = 0; i < bodies.size(); ++i) {
     const Reader r = rb.at(i);
     const json& body = bodies[i];
@@ -290,9 +299,8 @@ std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
     readOptionalVector(r, body, "angular_velocity", 3, w);
     dBodySetLinearVel(b, v[0], v[1], v[2]);
     dBodySetAngularVel(b, w[0], w[1], w[2]);
-    if (body.contains("geoms")) {
-      const json& geoms = body.at("geoms");
-      if (!geoms.is_array()) r.at("geoms").fail("must be an array");
+    if (const json* geomList = r.array(body, "geoms", false)) {
+      const json& geoms = *geomList;
       for (std::size_t k = 0; k < geoms.size(); ++k) {
         const Reader rg = r.at("geoms").at(k);
         dGeomID g = makeGeom(rg, geoms[k], s->space());
@@ -301,10 +309,9 @@ std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
       }
     }
   }
-  if (j.contains("static")) {
-    const json& statics = j.at("static");
+  if (const json* staticList = root.array(j, "static", false)) {
+    const json& statics = *staticList;
     const Reader rs = root.at("static");
-    if (!statics.is_array()) rs.fail("must be an array");
     for (std::size_t i = 0; i < statics.size(); ++i) {
       const Reader r = rs.at(i);
       dGeomID g = makeGeom(r, statics[i], s->space());
@@ -327,10 +334,9 @@ std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
              (worldAllowed ? ", or -1 for the world)" : ")"));
     return s->bodies()[static_cast<std::size_t>(k)];
   };
-  if (j.contains("joints")) {
-    const json& joints = j.at("joints");
+  if (const json* jointList = root.array(j, "joints", false)) {
+    const json& joints = *jointList;
     const Reader rj = root.at("joints");
-    if (!joints.is_array()) rj.fail("must be an array");
     for (std::size_t i = 0; i < joints.size(); ++i) {
       const Reader r = rj.at(i);
       const json& joint = joints[i];

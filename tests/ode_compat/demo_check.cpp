@@ -339,12 +339,18 @@ int report(const Options& o, bool pass, const std::string& detail) {
 // the answer's own uncertainty (its distance to the 10x coarser one).
 // A chaotic demo is judged so over a shorter horizon (--refine-frames),
 // before a time-step-sized difference has grown beyond the answer.
-int judgeByConvergedAnswer(const Options& given, const std::string& text) {
+// The end-state runs are reused when the horizon is the demo's own.
+int judgeByConvergedAnswer(const Options& given, const std::string& text, const Run& plainRun,
+                           const Run& swappedRun, const Run& blockstepRun) {
   Options o = given;
-  if (o.refineFrames > 0) o.frames = o.refineFrames;
-  const Run plain = runDemo(o, "converge-plain", Stepping::Ode);
-  const Run swapped = runDemo(o, "converge-swapped", Stepping::Ode, {"BSCOMPAT_STEPPER=swap"});
-  const Run blockstep = runDemo(o, "converge-blockstep", Stepping::Blockstep);
+  const bool shorter = o.refineFrames > 0 && o.refineFrames != o.frames;
+  if (shorter) o.frames = o.refineFrames;
+  const Run plain = shorter ? runDemo(o, "converge-plain", Stepping::Ode) : plainRun;
+  const Run swapped = shorter
+                          ? runDemo(o, "converge-swapped", Stepping::Ode, {"BSCOMPAT_STEPPER=swap"})
+                          : swappedRun;
+  const Run blockstep =
+      shorter ? runDemo(o, "converge-blockstep", Stepping::Blockstep) : blockstepRun;
   const Run fine =
       runDemo(o, "refined", Stepping::Ode, {"BSCOMPAT_REFINE=" + std::to_string(o.refine)});
   const Run coarser = runDemo(o, "refined-coarser", Stepping::Ode,
@@ -401,7 +407,7 @@ int checkEndState(const Options& o) {
                 dBlock, dSteppers, dPerturbed, chaotic ? "chaotic" : "not chaotic");
   if (dBlock <= allowed)
     return report(o, true, std::string(text) + (o.unmatched.empty() ? "" : "; matched now"));
-  if (o.refine > 0) return judgeByConvergedAnswer(o, text);
+  if (o.refine > 0) return judgeByConvergedAnswer(o, text, plain, swapped, blockstep);
   if (chaotic) return report(o, true, std::string(text) + ": sanity only");
   if (!o.differs.empty()) return report(o, true, std::string(text) + "; differs: " + o.differs);
   if (!o.unmatched.empty())
