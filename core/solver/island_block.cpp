@@ -43,10 +43,12 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
   entryRow_.clear();
   entryBlock_.clear();
   first_.clear();
+  bounded_.clear();
   if (maxRows < 2) return;
   if (bodyFirst_.size() < static_cast<std::size_t>(staticBody) + 1)
     bodyFirst_.resize(staticBody + 1);
   std::size_t factorSize = 0;
+  std::size_t weightsSize = 0;
   for (int island = 0; island < islandCount; ++island) {
     int n = 0, joints = 0;
     for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
@@ -64,18 +66,33 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
     isl.factor = factorSize;
     factorSize += static_cast<std::size_t>(n) * n;
     order(island, blocks, islandStart, staticBody);
+    isl.firstBounded = static_cast<std::int32_t>(bounded_.size());
+    for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
+      const ConstraintBlock& blk = blocks[bi];
+      if (blk.unilateral) continue;
+      for (int r = blk.boundedBegin(); r < blk.boundedEnd(); ++r) {
+        bounded_.push_back({r, bi, weightsSize, 0.0});
+        weightsSize += static_cast<std::size_t>(n);
+      }
+    }
+    isl.boundedCount = static_cast<std::int32_t>(bounded_.size()) - isl.firstBounded;
     islandOf_[island] = static_cast<std::int32_t>(islands_.size());
     islands_.push_back(isl);
   }
   factorSize_ = factorSize;
+  weightsSize_ = weightsSize;
 }
 
 void IslandBlocks::factorAll(const std::vector<ConstraintBlock>& blocks,
                              const std::vector<ConstraintRow>& rows,
                              const std::vector<SolverBody>& bodies) {
-  if (factor_.size() < factorSize_) factor_.resize(factorSize_);  // grows only while warming up
-  for (const Island& isl : islands_)
+  // Both grow only while warming up.
+  if (factor_.size() < factorSize_) factor_.resize(factorSize_);
+  if (weights_.size() < weightsSize_) weights_.resize(weightsSize_);
+  for (const Island& isl : islands_) {
     factor(isl, blocks, rows, bodies);
+    coupleBounded(isl, blocks, rows, bodies);
+  }
 }
 
 // Reverse Cuthill-McKee over the island's joints (neighbours: joints that
@@ -201,22 +218,10 @@ void IslandBlocks::factor(const Island& isl, const std::vector<ConstraintBlock>&
     F[i * n + i] = invD[i];
 }
 
-void IslandBlocks::solve(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
-                         std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies) {
-  const Island& isl = islands_[islandOf_[island]];
+void IslandBlocks::solveInPlace(const Island& isl, double* x) const {
   const std::int32_t n = isl.size;
   const double* F = &factor_[isl.factor];
   const std::int32_t* first = &first_[isl.firstEntry];
-  const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
-  const std::int32_t* blockOf = &entryBlock_[isl.firstEntry];
-  double* x = rhs_.data();
-  for (std::int32_t i = 0; i < n; ++i) {
-    const ConstraintRow& row = rows[rowOf[i]];
-    const ConstraintBlock& blk = blocks[blockOf[i]];
-    x[i] = relaxSkips(row, useBias)
-               ? 0.0
-               : -rowResidual(row, useBias, bodies[blk.bodyA], bodies[blk.bodyB]);
-  }
   // L y = r, y *= 1/D, L^T x = y; each within the profile.
   for (std::int32_t i = 0; i < n; ++i) {
     const double* Li = F + static_cast<std::ptrdiff_t>(i) * n;
@@ -230,6 +235,88 @@ void IslandBlocks::solve(int island, bool useBias, const std::vector<ConstraintB
     for (std::int32_t i = first[k]; i < k; ++i)
       x[i] -= Lk[i] * x[k];
   }
+}
+
+// u = J_e M^-1 J_b^T (non-zero for the rows sharing a body with the
+// bounded row's joint), w = -K^-1 u, and the Schur complement
+// J_b M^-1 J_b^T - u^T K^-1 u = K_bb + u . w.
+void IslandBlocks::coupleBounded(const Island& isl, const std::vector<ConstraintBlock>& blocks,
+                                 const std::vector<ConstraintRow>& rows,
+                                 const std::vector<SolverBody>& bodies) {
+  const std::int32_t n = isl.size;
+  const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
+  const std::int32_t* blockOf = &entryBlock_[isl.firstEntry];
+  for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
+    BoundedRow& br = bounded_[k];
+    const ConstraintRow& row = rows[br.row];
+    const ConstraintBlock& blk = blocks[br.block];
+    double* w = &weights_[br.weights];
+    for (std::int32_t i = 0; i < n; ++i)
+      w[i] = coupling(rows[rowOf[i]], blocks[blockOf[i]], row, blk, bodies);
+    double kbb = rowDiagonal(row, bodies[blk.bodyA], bodies[blk.bodyB]);
+    double uKu = 0.0;
+    // u is kept beside w only long enough to form u . K^-1 u (rhs_ holds
+    // 2n since factor()).
+    double* u = rhs_.data();
+    std::copy(w, w + n, u);
+    solveInPlace(isl, w);
+    for (std::int32_t i = 0; i < n; ++i) {
+      uKu += u[i] * w[i];
+      w[i] = -w[i];
+    }
+    const double schur = kbb - uKu + row.gamma;
+    // A bounded row that the equality rows already fix has no freedom left.
+    br.effMass = schur > 1e-12 * std::max(kbb, 1e-300) ? 1.0 / schur : 0.0;
+  }
+}
+
+void IslandBlocks::solveBounded(int island, bool useBias,
+                                const std::vector<ConstraintBlock>& blocks,
+                                std::vector<ConstraintRow>& rows,
+                                std::vector<SolverBody>& bodies) const {
+  const Island& isl = islands_[islandOf_[island]];
+  const std::int32_t n = isl.size;
+  const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
+  const std::int32_t* blockOf = &entryBlock_[isl.firstEntry];
+  for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
+    const BoundedRow& br = bounded_[k];
+    ConstraintRow& row = rows[br.row];
+    if (relaxSkips(row, useBias)) continue;
+    const ConstraintBlock& blk = blocks[br.block];
+    SolverBody& a = bodies[blk.bodyA];
+    SolverBody& b = bodies[blk.bodyB];
+    const double residual = rowResidual(row, useBias, a, b);
+    const double next = std::clamp(row.impulse - residual * br.effMass, row.lo, row.hi);
+    const double dP = next - row.impulse;
+    if (dP == 0.0) continue;
+    row.impulse = next;
+    applyImpulse(row, dP, a, b);
+    const double* w = &weights_[br.weights];
+    for (std::int32_t i = 0; i < n; ++i) {
+      if (w[i] == 0.0) continue;
+      ConstraintRow& eq = rows[rowOf[i]];
+      const ConstraintBlock& eb = blocks[blockOf[i]];
+      eq.impulse += w[i] * dP;
+      applyImpulse(eq, w[i] * dP, bodies[eb.bodyA], bodies[eb.bodyB]);
+    }
+  }
+}
+
+void IslandBlocks::solve(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
+                         std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies) {
+  const Island& isl = islands_[islandOf_[island]];
+  const std::int32_t n = isl.size;
+  const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
+  const std::int32_t* blockOf = &entryBlock_[isl.firstEntry];
+  double* x = rhs_.data();
+  for (std::int32_t i = 0; i < n; ++i) {
+    const ConstraintRow& row = rows[rowOf[i]];
+    const ConstraintBlock& blk = blocks[blockOf[i]];
+    x[i] = relaxSkips(row, useBias)
+               ? 0.0
+               : -rowResidual(row, useBias, bodies[blk.bodyA], bodies[blk.bodyB]);
+  }
+  solveInPlace(isl, x);
   for (std::int32_t i = 0; i < n; ++i) {
     ConstraintRow& row = rows[rowOf[i]];
     const ConstraintBlock& blk = blocks[blockOf[i]];

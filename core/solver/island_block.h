@@ -17,6 +17,18 @@
 // diagonal, and the factor is computed within that profile (the envelope
 // of K, where LDL^T creates no fill): a chain or a ragdoll costs time
 // linear in its length, a star of n joints on one body n^2 (it is dense).
+//
+// The joints' bounded rows (limits, motors) stay rows clamped one at a
+// time, but each in the null space of the whole island's equality rows:
+// its impulse lambda carries equality impulses w lambda, w = -K^-1 J_e
+// M^-1 J_b^T, that leave every equality row's J v + gamma P as it was, and
+// its effective mass is the island's Schur complement. In the null space
+// of its own joint only (as the per-joint blocks do), a motor holding a
+// hinge in the middle of a chain saw the two links beside it and not the
+// chain they hang in: its impulses overshot, the island solve took them
+// back, and ODE's demo_feedback bridge (15 hinge motors between two
+// sliders) vibrated at 25 Hz with growing energy until the runaway guard
+// caught it.
 #pragma once
 
 #include <cstdint>
@@ -46,6 +58,11 @@ class IslandBlocks {
     return island < static_cast<int>(islandOf_.size()) && islandOf_[island] >= 0;
   }
 
+  // The island's joint bounded rows, each clamped and solved in the null
+  // space of the island's equality rows (its impulse moves them by w).
+  void solveBounded(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
+                    std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies) const;
+
   // One exact solve of the island's equality rows: dP = -K^-1 (J v + b +
   // gamma P), applied to the bodies and accumulated in the rows.
   void solve(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
@@ -56,15 +73,29 @@ class IslandBlocks {
 
  private:
   struct Island {
-    std::int32_t firstEntry = 0;  // into entryRow_ / entryBlock_ / first_
-    std::int32_t size = 0;        // rows
-    std::size_t factor = 0;       // offset of its size x size factor in factor_
+    std::int32_t firstEntry = 0;    // into entryRow_ / entryBlock_ / first_
+    std::int32_t size = 0;          // rows
+    std::size_t factor = 0;         // offset of its size x size factor in factor_
+    std::int32_t firstBounded = 0;  // into bounded_
+    std::int32_t boundedCount = 0;
+  };
+  // A joint's bounded row in a covered island.
+  struct BoundedRow {
+    std::int32_t row = 0;     // index into the solver's rows
+    std::int32_t block = 0;   // its joint's block
+    std::size_t weights = 0;  // offset of its w (one per equality row) in weights_
+    double effMass = 0.0;     // 1 / (Schur complement + gamma)
   };
 
   void order(int island, const std::vector<ConstraintBlock>& blocks,
              const std::vector<std::int32_t>& islandStart, std::int32_t staticBody);
   void factor(const Island& isl, const std::vector<ConstraintBlock>& blocks,
               const std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
+  // x = K^-1 x with the island's factor.
+  void solveInPlace(const Island& isl, double* x) const;
+  // Each bounded row's w and effective mass, once the factor is made.
+  void coupleBounded(const Island& isl, const std::vector<ConstraintBlock>& blocks,
+                     const std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
 
   std::vector<std::int32_t> islandOf_;  // island -> index into islands_, or -1
   std::vector<Island> islands_;
@@ -75,6 +106,9 @@ class IslandBlocks {
   std::vector<double> factor_;            // L below the diagonal, 1/D on it (row-major)
   std::vector<double> rhs_;
   std::size_t factorSize_ = 0;
+  std::vector<BoundedRow> bounded_;
+  std::vector<double> weights_;
+  std::size_t weightsSize_ = 0;
   // Ordering scratch, reused.
   std::vector<std::int32_t> orderedBlocks_, queue_, bodyFirst_, blockStart_;
   std::vector<std::uint8_t> visited_;

@@ -29,6 +29,12 @@
 // (kCarry in the .cpp): coupled corrections exceed the sum of their
 // diagonals (a light link holding a heavy one, a taut chain), but only
 // for a step or a few, as the structure springs back.
+// A structure ringing after an impact trades its kinetic energy with
+// energy the count does not see: at each turning point its kinetic
+// energy nearly vanishes and then comes back. So the island's recent peak,
+// forgotten over kPeakMemory (in the .cpp), also explains: energy
+// returning to where it was is not growth, while sweeps that diverge
+// exceed every earlier step's energy and still show.
 // SolverSettings::runawayEnergyGain is the carried growth allowed.
 #pragma once
 
@@ -73,6 +79,7 @@ class RunawayGuard {
     double before = 0.0;     // kinetic energy before the step
     double explained = 0.0;  // E_free plus the rows' targets
     double mass = 0.0;
+    double peak = 0.0;  // its recent peak kinetic energy, decayed to now
     // After the step:
     double after = 0.0;
     double fastest = 0.0;  // largest linear speed, m/s
@@ -95,6 +102,8 @@ class RunawayGuard {
   // Per body: unexplained growth carried across steps (a log of an energy
   // ratio, >= 0).
   std::vector<double> growth_;
+  // Per body: the recent peak kinetic energy of its island (J).
+  std::vector<double> peak_;
 };
 
 double kineticEnergy(const Body& b);

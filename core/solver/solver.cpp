@@ -641,14 +641,19 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
         solveRow(rows[i], useBias, a, b);
       continue;
     }
+    if (islandBlock) continue;  // its rows are solved with the island's, below
     // Limits and motors first, the rigid block last (row.h says why).
     for (int i = blk.boundedBegin(); i < blk.boundedEnd(); ++i) {
       solveCoupledRow(i, useBias, rows, ne, a, b);
     }
-    if (!islandBlock) solveEqualityBlock(blk, useBias, a, b);
+    solveEqualityBlock(blk, useBias, a, b);
   }
-  // The island's equality rows all at once, last (the most important).
-  if (islandBlock) islandBlocks_.solve(island, useBias, blocks_, rows_, bodies_);
+  // The island's limits and motors, then its equality rows all at once,
+  // last (the most important).
+  if (islandBlock) {
+    islandBlocks_.solveBounded(island, useBias, blocks_, rows_, bodies_);
+    islandBlocks_.solve(island, useBias, blocks_, rows_, bodies_);
+  }
 }
 
 // Section 4.3: (J M^-1 J^T + c/h) dP = -(J v + b + gamma P) for the whole

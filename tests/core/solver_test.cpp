@@ -429,6 +429,64 @@ TEST(Solver, HeavyEndChainReleasedHorizontallyHolds) {
   EXPECT_LT(fastest, 30.0);
 }
 
+// Planks of ODE's demo_feedback bridge (0.9 x 4 x 0.1 m, 0.36 kg) from x0
+// along x at 5 m, on hinges whose motors hold them (target 0, 8000 N m at
+// most); the first plank (and the last, if bothEnds) on a slider along
+// the span with a 4000 N motor, the first with stops [0, 0.2] m.
+std::vector<BodyId> motorHeldPlanks(World& world, int planks, double x0, bool bothEnds) {
+  std::vector<BodyId> bodies;
+  for (int i = 0; i < planks; ++i)
+    bodies.push_back(world.createBody(boxBody(Vec3(x0 + i, 0, 5), 0.36, Vec3(0.9, 4, 0.1))));
+  for (int i = 0; i + 1 < planks; ++i) {
+    HingeJointDesc hinge;
+    hinge.common.bodyA = bodies[i];
+    hinge.common.bodyB = bodies[i + 1];
+    hinge.anchor = Vec3(x0 + i + 0.5, 0, 5);
+    hinge.axis = Vec3::UnitY();
+    hinge.motor.maxForce = 8000.0;
+    world.createJoint(hinge);
+  }
+  for (int end = 0; end < (bothEnds ? 2 : 1); ++end) {
+    SliderJointDesc slider;
+    slider.common.bodyA = bodies[end == 0 ? 0 : planks - 1];
+    slider.axis = Vec3::UnitX();
+    slider.motor.maxForce = 4000.0;
+    slider.limit.enabled = end == 0;
+    slider.limit.hi = 0.2;
+    world.createJoint(slider);
+  }
+  return bodies;
+}
+
+// ODE's demo_feedback bridge: 16 planks on hinges whose motors hold them
+// (target 0, 8000 N m at most), its ends on sliders along the span. The
+// motors make the bridge one rigid beam, as ODE's dWorldStep holds it
+// (2e-15 J). Each motor solved in the null space of its own joint only
+// overshot what the island's equality block then took back: the bridge
+// shook (1e-3 J), calmed, then gained energy again from 3e-7 to 6e-5 J
+// over 70 steps, and ran away once a weight landed on it.
+TEST(Solver, MotorHeldBridgeInOneIslandBlockStaysStill) {
+  World world;
+  world.setSettings(SolverSettings::subStepped(10));
+  world.setGravity(Vec3(0, 0, -9.8));
+  const int planks = 16;
+  const std::vector<BodyId> bridge = motorHeldPlanks(world, planks, -planks / 2.0, true);
+  double settled = 0.0, sag = 0.0;
+  for (int step = 0; step < 400; ++step) {
+    world.step(0.002);
+    ASSERT_TRUE(world.lastStepStats().runaways.empty()) << "step " << step;
+    double energy = 0.0;
+    for (BodyId b : bridge)
+      energy += kineticEnergy(world.body(b));
+    if (step >= 200) settled = std::max(settled, energy);
+    sag = std::max(sag, 5.0 - world.body(bridge[planks / 2]).position.z());
+  }
+  std::printf("motor-held bridge: kinetic energy after 0.4 s at most %.3g J, sag %.3g mm\n",
+              settled, 1e3 * sag);
+  EXPECT_LT(settled, 1e-6);
+  EXPECT_LT(sag, 1e-3);
+}
+
 // The runaway guard: per-joint blocks diverge on the star; the island is
 // put back as it was before the step that ran away, named, and the rest
 // of the world keeps its step.
@@ -486,6 +544,41 @@ TEST(RunawayGuard, DivergingIslandIsPutBackAndNamed) {
   ASSERT_GE(caughtAt, 0) << "the per-joint star diverges: the guard must catch it";
   // Caught early: the anchor turns at a few rad/s, not the 1e15 it reaches.
   EXPECT_LT(spinWhenCaught, 10.0);
+}
+
+// Half of ODE's demo_feedback bridge after a joint snapped: eight planks
+// held straight by hinge motors, one end on a slider, the other free,
+// struck from below. It rings and its kinetic energy nearly vanishes at
+// each turning point before coming back (0.001 J, then 0.156 J one 2 ms
+// step later): energy returning to its recent peak is not a runaway. The
+// guard used to hand it to ODE's stepper.
+TEST(RunawayGuard, RingingStructureIsNotARunaway) {
+  World world;
+  world.setSettings(SolverSettings::subStepped(10));
+  world.setGravity(Vec3(0, 0, -9.8));
+  const std::vector<BodyId> half = motorHeldPlanks(world, 8, -8.0, false);
+  world.setLinearVelocity(half.back(), Vec3(0, 0, 3.0));
+  double first = 0.0, last = 0.0;
+  int turningPoints = 0;
+  double previous = kInf;
+  bool falling = false;
+  for (int step = 0; step < 500; ++step) {
+    world.step(0.002);
+    EXPECT_TRUE(world.lastStepStats().runaways.empty()) << "step " << step;
+    double energy = 0.0;
+    for (BodyId b : half)
+      energy += kineticEnergy(world.body(b));
+    if (step == 0) first = energy;
+    if (falling && energy > previous) ++turningPoints;
+    falling = energy < previous;
+    previous = last = energy;
+  }
+  std::printf(
+      "ringing half bridge: kinetic energy %.3g J after the strike, %.3g J 1 s later, %d "
+      "turning points\n",
+      first, last, turningPoints);
+  EXPECT_GT(turningPoints, 3) << "the scene must ring to test the guard";
+  EXPECT_LT(last, first) << "ringing, not gaining";
 }
 
 // A state that turns non-finite within the step (a finite torque too large
