@@ -67,15 +67,19 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
     factorSize += static_cast<std::size_t>(n) * n;
     order(island, blocks, islandStart, staticBody);
     isl.firstBounded = static_cast<std::int32_t>(bounded_.size());
+    bool touches = false;
+    for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi)
+      touches = touches || blocks[bi].unilateral;
     for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
       const ConstraintBlock& blk = blocks[bi];
-      if (blk.unilateral) continue;
+      if (blk.unilateral || touches) continue;
       for (int r = blk.boundedBegin(); r < blk.boundedEnd(); ++r) {
         bounded_.push_back({r, bi, weightsSize, 0.0});
         weightsSize += static_cast<std::size_t>(n);
       }
     }
     isl.boundedCount = static_cast<std::int32_t>(bounded_.size()) - isl.firstBounded;
+    isl.bounded = !touches;
     islandOf_[island] = static_cast<std::int32_t>(islands_.size());
     islands_.push_back(isl);
   }

@@ -626,6 +626,8 @@ void Solver::warmStart() {
 
 void Solver::sweep(int island, bool useBias, BlockMode mode) {
   const bool islandBlock = useIslandBlock_ && islandBlocks_.covers(island);
+  const bool islandBounded = islandBlock && islandBlocks_.solvesBounded(island);
+  if (islandBounded) islandBlocks_.solveBounded(island, useBias, blocks_, rows_, bodies_);
   for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
     ConstraintBlock& blk = blocks_[bi];
     SolverBody& a = bodies_[blk.bodyA];
@@ -641,19 +643,16 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
         solveRow(rows[i], useBias, a, b);
       continue;
     }
-    if (islandBlock) continue;  // its rows are solved with the island's, below
     // Limits and motors first, the rigid block last (row.h says why).
-    for (int i = blk.boundedBegin(); i < blk.boundedEnd(); ++i) {
-      solveCoupledRow(i, useBias, rows, ne, a, b);
+    if (!islandBounded) {
+      for (int i = blk.boundedBegin(); i < blk.boundedEnd(); ++i)
+        solveCoupledRow(i, useBias, rows, ne, a, b);
     }
-    solveEqualityBlock(blk, useBias, a, b);
+    if (!islandBlock) solveEqualityBlock(blk, useBias, a, b);
   }
   // The island's limits and motors, then its equality rows all at once,
   // last (the most important).
-  if (islandBlock) {
-    islandBlocks_.solveBounded(island, useBias, blocks_, rows_, bodies_);
-    islandBlocks_.solve(island, useBias, blocks_, rows_, bodies_);
-  }
+  if (islandBlock) islandBlocks_.solve(island, useBias, blocks_, rows_, bodies_);
 }
 
 // Section 4.3: (J M^-1 J^T + c/h) dP = -(J v + b + gamma P) for the whole
