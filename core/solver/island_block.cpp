@@ -44,11 +44,14 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
   entryBlock_.clear();
   first_.clear();
   bounded_.clear();
+  islandBodies_.clear();
   if (maxRows < 2) return;
+  if (bodyLocal_.size() < static_cast<std::size_t>(staticBody) + 1)
+    bodyLocal_.resize(staticBody + 1);
   if (bodyFirst_.size() < static_cast<std::size_t>(staticBody) + 1)
     bodyFirst_.resize(staticBody + 1);
   std::size_t factorSize = 0;
-  std::size_t weightsSize = 0;
+  std::size_t weightsSize = 0, deltasSize = 0;
   for (int island = 0; island < islandCount; ++island) {
     int n = 0, joints = 0;
     for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
@@ -70,12 +73,26 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
     bool touches = false;
     for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi)
       touches = touches || blocks[bi].unilateral;
+    isl.firstBody = static_cast<std::int32_t>(islandBodies_.size());
+    if (!touches) {
+      for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
+        const ConstraintBlock& blk = blocks[bi];
+        for (std::int32_t body : {blk.bodyA, blk.bodyB}) {
+          if (body == staticBody) continue;
+          if (std::find(islandBodies_.begin() + isl.firstBody, islandBodies_.end(), body) ==
+              islandBodies_.end())
+            islandBodies_.push_back(body);
+        }
+      }
+    }
+    isl.bodyCount = static_cast<std::int32_t>(islandBodies_.size()) - isl.firstBody;
     for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
       const ConstraintBlock& blk = blocks[bi];
       if (blk.unilateral || touches) continue;
       for (int r = blk.boundedBegin(); r < blk.boundedEnd(); ++r) {
-        bounded_.push_back({r, bi, weightsSize, 0.0});
+        bounded_.push_back({r, bi, weightsSize, deltasSize, 0.0});
         weightsSize += static_cast<std::size_t>(n);
+        deltasSize += 2 * static_cast<std::size_t>(isl.bodyCount);
       }
     }
     isl.boundedCount = static_cast<std::int32_t>(bounded_.size()) - isl.firstBounded;
@@ -85,6 +102,7 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
   }
   factorSize_ = factorSize;
   weightsSize_ = weightsSize;
+  deltasSize_ = deltasSize;
 }
 
 void IslandBlocks::factorAll(const std::vector<ConstraintBlock>& blocks,
@@ -93,6 +111,8 @@ void IslandBlocks::factorAll(const std::vector<ConstraintBlock>& blocks,
   // Both grow only while warming up.
   if (factor_.size() < factorSize_) factor_.resize(factorSize_);
   if (weights_.size() < weightsSize_) weights_.resize(weightsSize_);
+  if (deltas_.size() < deltasSize_) deltas_.resize(deltasSize_);
+  if (boundedStep_.size() < bounded_.size()) boundedStep_.resize(bounded_.size());
   for (const Island& isl : islands_) {
     factor(isl, blocks, rows, bodies);
     coupleBounded(isl, blocks, rows, bodies);
@@ -250,6 +270,20 @@ void IslandBlocks::coupleBounded(const Island& isl, const std::vector<Constraint
   const std::int32_t n = isl.size;
   const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
   const std::int32_t* blockOf = &entryBlock_[isl.firstEntry];
+  const std::int32_t* islandBody = &islandBodies_[isl.firstBody];
+  for (std::int32_t k = 0; k < isl.bodyCount; ++k)
+    bodyLocal_[islandBody[k]] = k;
+  // Adds a row's M^-1 J^T times p to a bounded row's velocity changes.
+  auto addRow = [&](Vec3* delta, const ConstraintRow& row, const ConstraintBlock& blk, double p) {
+    for (int side = 0; side < 2; ++side) {
+      const std::int32_t body = side == 0 ? blk.bodyA : blk.bodyB;
+      const SolverBody& sb = bodies[body];
+      if (immovable(sb)) continue;
+      Vec3* d = delta + 2 * bodyLocal_[body];
+      d[0] += (p * sb.invMass) * (side == 0 ? row.linA : row.linB);
+      d[1] += p * (side == 0 ? row.invIangA : row.invIangB);
+    }
+  };
   for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
     BoundedRow& br = bounded_[k];
     const ConstraintRow& row = rows[br.row];
@@ -268,12 +302,21 @@ void IslandBlocks::coupleBounded(const Island& isl, const std::vector<Constraint
       uKu += u[i] * w[i];
       w[i] = -w[i];
     }
+    Vec3* delta = &deltas_[br.deltas];
+    std::fill(delta, delta + 2 * isl.bodyCount, Vec3::Zero());
+    addRow(delta, row, blk, 1.0);
+    for (std::int32_t i = 0; i < n; ++i) {
+      if (w[i] != 0.0) addRow(delta, rows[rowOf[i]], blocks[blockOf[i]], w[i]);
+    }
     const double schur = kbb - uKu + row.gamma;
     // A bounded row that the equality rows already fix has no freedom left.
     br.effMass = schur > 1e-12 * std::max(kbb, 1e-300) ? 1.0 / schur : 0.0;
   }
 }
 
+// Each row moves the island's bodies by its precomputed velocity changes;
+// the equality rows' share, w times the row's impulse, is added once at
+// the end (only the island solve reads their impulses).
 void IslandBlocks::solveBounded(int island, bool useBias,
                                 const std::vector<ConstraintBlock>& blocks,
                                 std::vector<ConstraintRow>& rows,
@@ -281,28 +324,32 @@ void IslandBlocks::solveBounded(int island, bool useBias,
   const Island& isl = islands_[islandOf_[island]];
   const std::int32_t n = isl.size;
   const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
-  const std::int32_t* blockOf = &entryBlock_[isl.firstEntry];
+  const std::int32_t* islandBody = &islandBodies_[isl.firstBody];
   for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
     const BoundedRow& br = bounded_[k];
     ConstraintRow& row = rows[br.row];
+    boundedStep_[k] = 0.0;
     if (relaxSkips(row, useBias)) continue;
     const ConstraintBlock& blk = blocks[br.block];
-    SolverBody& a = bodies[blk.bodyA];
-    SolverBody& b = bodies[blk.bodyB];
-    const double residual = rowResidual(row, useBias, a, b);
+    const double residual = rowResidual(row, useBias, bodies[blk.bodyA], bodies[blk.bodyB]);
     const double next = std::clamp(row.impulse - residual * br.effMass, row.lo, row.hi);
     const double dP = next - row.impulse;
     if (dP == 0.0) continue;
     row.impulse = next;
-    applyImpulse(row, dP, a, b);
-    const double* w = &weights_[br.weights];
-    for (std::int32_t i = 0; i < n; ++i) {
-      if (w[i] == 0.0) continue;
-      ConstraintRow& eq = rows[rowOf[i]];
-      const ConstraintBlock& eb = blocks[blockOf[i]];
-      eq.impulse += w[i] * dP;
-      applyImpulse(eq, w[i] * dP, bodies[eb.bodyA], bodies[eb.bodyB]);
+    boundedStep_[k] = dP;
+    const Vec3* delta = &deltas_[br.deltas];
+    for (std::int32_t b = 0; b < isl.bodyCount; ++b) {
+      SolverBody& body = bodies[islandBody[b]];
+      body.v += dP * delta[2 * b];
+      body.w += dP * delta[2 * b + 1];
     }
+  }
+  for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
+    const double dP = boundedStep_[k];
+    if (dP == 0.0) continue;
+    const double* w = &weights_[bounded_[k].weights];
+    for (std::int32_t i = 0; i < n; ++i)
+      rows[rowOf[i]].impulse += w[i] * dP;
   }
 }
 
