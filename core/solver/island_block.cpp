@@ -319,8 +319,7 @@ void IslandBlocks::coupleBounded(const Island& isl, const std::vector<Constraint
 // the end (only the island solve reads their impulses).
 void IslandBlocks::solveBounded(int island, bool useBias,
                                 const std::vector<ConstraintBlock>& blocks,
-                                std::vector<ConstraintRow>& rows,
-                                std::vector<SolverBody>& bodies) const {
+                                std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies) {
   const Island& isl = islands_[islandOf_[island]];
   const std::int32_t n = isl.size;
   const std::int32_t* rowOf = &entryRow_[isl.firstEntry];

@@ -75,7 +75,7 @@ class IslandBlocks {
   // The island's joint bounded rows, each clamped and solved in the null
   // space of the island's equality rows (its impulse moves them by w).
   void solveBounded(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
-                    std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies) const;
+                    std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies);
 
   // One exact solve of the island's equality rows: dP = -K^-1 (J v + b +
   // gamma P), applied to the bodies and accumulated in the rows.
@@ -133,7 +133,7 @@ class IslandBlocks {
   std::vector<std::int32_t> bodyLocal_;  // a body's index in its island's list (scratch)
   std::vector<Vec3> deltas_;
   std::size_t deltasSize_ = 0;
-  mutable std::vector<double> boundedStep_;  // each bounded row's impulse change in a sweep
+  std::vector<double> boundedStep_;  // each bounded row's impulse change in a sweep
   // Ordering scratch, reused.
   std::vector<std::int32_t> orderedBlocks_, queue_, bodyFirst_, blockStart_;
   std::vector<std::uint8_t> visited_;
