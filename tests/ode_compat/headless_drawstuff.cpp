@@ -11,8 +11,13 @@
 //   BSCOMPAT_FRAMES  frames to run (default 600)
 //   BSCOMPAT_KEYS    keys to press: "frame:key,frame:key", e.g. "0:a,120:s"
 //   BSCOMPAT_POSES   file to write the last frame's drawn poses to
+//   BSCOMPAT_STEPS_PER_FRAME  calls of the demo's step function per frame
+//                    (default 1). With the stepper shim's step scaled by
+//                    the inverse, the whole demo, collision included, runs
+//                    at a finer time step: its converged answer.
 #include <drawstuff/drawstuff.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
@@ -141,13 +146,16 @@ extern "C" std::time_t time(std::time_t* t) {
 void dsSimulationLoop(int, char**, int, int, dsFunctions* fn) {
   const long frames = environmentNumber("BSCOMPAT_FRAMES", 600);
   const std::vector<KeyPress> keys = scriptedKeys();
+  const long stepsPerFrame = std::max(1L, environmentNumber("BSCOMPAT_STEPS_PER_FRAME", 1));
   if (fn->start) fn->start();
   long frame = 0;
   for (; frame < frames && !loop().stopRequested; ++frame) {
     for (const KeyPress& k : keys)
       if (k.frame == frame && fn->command) fn->command(k.key);
-    loop().frame.clear();
-    if (fn->step) fn->step(0);
+    for (long k = 0; k < stepsPerFrame; ++k) {
+      loop().frame.clear();
+      if (fn->step) fn->step(0);
+    }
   }
   if (fn->stop) fn->stop();
   if (const char* path = std::getenv("BSCOMPAT_POSES")) writePoses(path, frame);

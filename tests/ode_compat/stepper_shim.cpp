@@ -15,6 +15,22 @@
 //                              without contacts; contact joints would
 //                              repeat their depth correction n times, so
 //                              demos with contacts cannot be refined so.
+//   BSCOMPAT_WHOLE_REFINE=n    the whole demo at a step n times finer,
+//                              collision included: every step is h / n
+//                              (with damping per step converted as
+//                              above) and the headless drawstuff, told
+//                              BSCOMPAT_STEPS_PER_FRAME=n, calls the
+//                              demo's step function n times per frame.
+//                              For demos with contacts whose step
+//                              function does nothing but collide and step.
+//   BSCOMPAT_RIGID_CONTACTS=v  contacts push out of penetration no faster
+//                              than v m/s (dWorldSetContactMaxCorrectingVel
+//                              before each step). At a fine step ODE's
+//                              Baumgarte push-out of a contact found d deep
+//                              is ERP d / h, about ERP times the impact
+//                              speed however fine the step: a bounce the
+//                              program never asked for. Limited, the
+//                              refined answer is that of rigid contacts.
 //   BSCOMPAT_RNG=split         ODE's own draws from its random generator
 //                              (quickstep shuffles its rows with dRandInt)
 //                              come from a stream of their own, so the
@@ -34,6 +50,8 @@
 #include <cstring>
 #include <map>
 #include <set>
+#include <utility>
+#include <vector>
 
 namespace {
 
@@ -114,12 +132,49 @@ int refinedStep(dWorldID w, dReal h, int n) {
   return ok;
 }
 
+int wholeRefinement() {
+  const char* v = std::getenv("BSCOMPAT_WHOLE_REFINE");
+  return v ? std::max(1, std::atoi(v)) : 1;
+}
+
+void limitContactPushOut(dWorldID w) {
+  if (const char* v = std::getenv("BSCOMPAT_RIGID_CONTACTS"))
+    dWorldSetContactMaxCorrectingVel(w, static_cast<dReal>(std::strtod(v, nullptr)));
+}
+
+// One step of h / n with each body's damping per step converted to the
+// same decay over h, and the world's CFM scaled by 1 / n: ODE adds CFM / h
+// to each row's K, so it is the same regularization at every step size;
+// kept as it is, it would turn contacts into a damper of 1 / CFM (N s/m)
+// that dominates K at fine steps (1e-5 at h / 1000: CFM / h = 1).
+int finerStep(Stepper stepper, dWorldID w, dReal h, int n) {
+  const dReal cfm = dWorldGetCFM(w);
+  dWorldSetCFM(w, cfm / n);
+  std::vector<std::pair<dBodyID, std::pair<dReal, dReal>>> damping;
+  for (dBodyID b : bodiesOf()[w]) {
+    damping.push_back({b, {dBodyGetLinearDamping(b), dBodyGetAngularDamping(b)}});
+    dBodySetLinearDamping(b, finerDamping(dBodyGetLinearDamping(b), n));
+    dBodySetAngularDamping(b, finerDamping(dBodyGetAngularDamping(b), n));
+  }
+  const int ok = stepper(w, h / n);
+  dWorldSetCFM(w, cfm);
+  for (const auto& [b, d] : damping) {
+    dBodySetLinearDamping(b, d.first);
+    dBodySetAngularDamping(b, d.second);
+  }
+  return ok;
+}
+
 int step(dWorldID w, dReal h, const char* name) {
+  limitContactPushOut(w);
   const int n = refinement();
   if (n > 1) return refinedStep(w, scaled(h), n);
   static const auto quick = real<Stepper>("dWorldQuickStep");
   static const auto direct = real<Stepper>("dWorldStep");
-  return (std::strcmp(name, "dWorldStep") == 0 ? direct : quick)(w, scaled(h));
+  const Stepper stepper = std::strcmp(name, "dWorldStep") == 0 ? direct : quick;
+  const int whole = wholeRefinement();
+  if (whole > 1) return finerStep(stepper, w, scaled(h), whole);
+  return stepper(w, scaled(h));
 }
 
 bool rngSplit() {
@@ -217,6 +272,18 @@ extern "C" void dWorldDestroy(dWorldID w) {
   static const auto destroy = real<void (*)(dWorldID)>("dWorldDestroy");
   destroy(w);
   bodiesOf().erase(w);
+}
+
+// Under BSCOMPAT_WHOLE_REFINE a contact's own CFM is scaled as the
+// world's is (see finerStep).
+extern "C" dJointID dJointCreateContact(dWorldID w, dJointGroupID g, const dContact* c) {
+  static const auto create =
+      real<dJointID (*)(dWorldID, dJointGroupID, const dContact*)>("dJointCreateContact");
+  const int n = wholeRefinement();
+  if (n == 1 || !(c->surface.mode & dContactSoftCFM)) return create(w, g, c);
+  dContact finer = *c;
+  finer.surface.soft_cfm /= n;
+  return create(w, g, &finer);
 }
 
 extern "C" int dWorldQuickStep(dWorldID w, dReal h) {
