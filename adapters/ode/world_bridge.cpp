@@ -534,6 +534,13 @@ void WorldBridge::handBackRunaways(const WorldRecord& record) {
       std::snprintf(text, sizeof text,
                     "an island ran away: %s reached %.3g m/s, over the runaway speed %.3g m/s",
                     bodyLabel(culprit).c_str(), r.fastest, core_.settings().runawaySpeed);
+    } else if (r.sustained) {
+      std::snprintf(text, sizeof text,
+                    "an island ran away: its kinetic energy and the energy of its joint errors "
+                    "kept growing, to %.3g J (%.3g J in the errors) where its forces and motors "
+                    "explain %.3g J (%.3gx beyond, over the last steps; most gained by %s)",
+                    r.energyAfter, r.errorEnergy, r.energyExplained, r.growth,
+                    bodyLabel(culprit).c_str());
     } else {
       std::snprintf(text, sizeof text,
                     "an island ran away: its kinetic energy reached %.3g J where its forces, "

@@ -40,6 +40,7 @@
 // row's precomputed velocity changes.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -81,6 +82,24 @@ class IslandBlocks {
   // gamma P), applied to the bodies and accumulated in the rows.
   void solve(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
              std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies);
+
+  // 1/2 d^T K^-1 d over island i's equality rows, d_r = speed(row r, its
+  // block's index) (the
+  // runaway guard's measure of the energy the rows' errors hold: the sum
+  // of the diagonals 1/2 d_r^2 / K_rr undercounts a taut chain's fivefold).
+  template <class F>
+  double inverseQuadratic(int island, const std::vector<ConstraintRow>& rows, F speed) {
+    const Island& isl = islands_[islandOf_[island]];
+    rhs_.resize(std::max<std::size_t>(rhs_.size(), static_cast<std::size_t>(isl.size)));
+    double* x = rhs_.data();
+    for (std::int32_t k = 0; k < isl.size; ++k)
+      x[k] = speed(rows[entryRow_[isl.firstEntry + k]], entryBlock_[isl.firstEntry + k]);
+    solveInPlace(isl, x);
+    double sum = 0.0;
+    for (std::int32_t k = 0; k < isl.size; ++k)
+      sum += speed(rows[entryRow_[isl.firstEntry + k]], entryBlock_[isl.firstEntry + k]) * x[k];
+    return 0.5 * sum;
+  }
 
   // Equality rows covered in all (statistics).
   int coveredRows() const { return static_cast<int>(entryRow_.size()); }

@@ -138,6 +138,10 @@ struct RunawayIsland {
   double energyAfter = 0.0;      // after the step (not finite: not summed), J
   double fastest = 0.0;          // largest linear speed after the step, m/s
   double growth = 0.0;           // unexplained energy growth, carried over steps
+  // Caught by the slow test (runaway_guard.h): energyBefore/After then sum
+  // the kinetic energy and the energy held in the joint errors.
+  bool sustained = false;
+  double errorEnergy = 0.0;                     // held in the rows' errors after the step, J
   std::int32_t firstBody = 0, bodyCount = 0;    // into StepStats::runawayBodies
   std::int32_t firstJoint = 0, jointCount = 0;  // into StepStats::runawayJoints
 };

@@ -94,7 +94,8 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     const auto solveStart = Clock::now();
     prepare(in, s, h);
     if (sub == 0 && countEnergy)
-      guard_.addCorrections(blocks_, rows_, bodies_, islandStart_, islandCount_, in.h);
+      guard_.addCorrections(blocks_, rows_, bodies_, islandStart_, islandCount_, in.h,
+                            useIslandBlock_ ? &islandBlocks_ : nullptr);
     warmStart();
     // Each sub-step gets its share of what remains of the time budget;
     // once it is spent (prepare alone can spend it) a sub-step still runs
@@ -106,7 +107,12 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     stats.iterations += solve(s, sub, subBudget, stats);
     integratePositions(in, s, h);
     relax(s, h);
-    if (countEnergy) guard_.addWork(blocks_, rows_, bodies_, islandStart_, islandCount_);
+    if (countEnergy) {
+      guard_.addWork(blocks_, rows_, bodies_, islandStart_, islandCount_);
+      if (sub == substeps - 1)
+        guard_.addRemainingErrors(blocks_, rows_, bodies_, islandStart_, islandCount_, h, in.h,
+                                  useIslandBlock_ ? &islandBlocks_ : nullptr);
+    }
     storeImpulses(in, h);
     stats.solveSeconds += seconds(solveStart, Clock::now());
   }
