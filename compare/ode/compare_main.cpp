@@ -125,6 +125,26 @@ std::string note(const RunResult& r) {
 
 }  // namespace
 
+// --help's list of scenes and steppers, a line each.
+std::string helpFooter() {
+  std::string text = "\nScenes (--scene; default: all but star):\n";
+  char line[200];
+  for (const std::string& n : sceneNames()) {
+    std::snprintf(line, sizeof line, "  %-22s %s\n", n.c_str(), sceneSummary(n).c_str());
+    text += line;
+  }
+  text +=
+      "\nSteppers (--stepper; default: quickstep:20 quickstep:20x10 direct blockstep "
+      "blockstep:substep:20):\n"
+      "  quickstep:IT[xSUB]     ODE's dWorldQuickStep, IT iterations, SUB sub-steps that each\n"
+      "                         collide again (as a sub-stepping program does)\n"
+      "  direct                 ODE's dWorldStep (its exact LCP), under the --cap wall time\n"
+      "  blockstep              blockstep as a drop-in ODE program gets it (its default)\n"
+      "  blockstep:substep:N    N sub-steps of one block sweep and one relax sweep each\n"
+      "  blockstep:paper:IT     the paper's solver: one step, IT block iterations\n";
+  return text;
+}
+
 int main(int argc, char** argv) {
   CLI::App app{
       "blockstep-compare: ODE scenes stepped by ODE's quickstep, ODE's dWorldStep and "
@@ -165,6 +185,7 @@ int main(int argc, char** argv) {
   app.add_flag("--grid", grid,
                "error versus cost: quickstep 10/20/50 iterations x 1/2/4/10 sub-steps and "
                "blockstep 2/5/10/20/40 sub-steps, in place of --stepper");
+  app.footer(helpFooter());
   CLI11_PARSE(app, argc, argv);
   if (grid) steppers = costGrid();
 

@@ -93,5 +93,7 @@ class Scene {
 // Throws std::invalid_argument naming the accepted scenes.
 std::unique_ptr<Scene> makeScene(const std::string& name, int size = 0);
 const std::vector<std::string>& sceneNames();
+// A line saying what a built-in scene is ("" for an unknown name).
+std::string sceneSummary(const std::string& name);
 
 }  // namespace blockstep::compare

@@ -267,17 +267,37 @@ void buildStar(Scene& s) {
 
 using Builder = std::function<void(Scene&, int)>;
 
-const std::map<std::string, Builder>& builders() {
-  static const std::map<std::string, Builder> all = {
-      {"chain", [](Scene& s, int) { buildChain(s, false); }},
-      {"chain_swing", [](Scene& s, int) { buildChain(s, true); }},
-      {"stack", [](Scene& s, int) { buildStack(s); }},
-      {"pyramid", [](Scene& s, int) { buildPyramid(s); }},
-      {"ragdoll", [](Scene& s, int) { buildRagdoll(s); }},
-      {"cloth", [](Scene& s, int n) { buildCloth(s, n > 0 ? n : 32); }},
-      {"softcube", [](Scene& s, int) { buildSoftCube(s); }},
-      {"hair", [](Scene& s, int) { buildHair(s); }},
-      {"star", [](Scene& s, int) { buildStar(s); }},
+struct SceneKind {
+  Builder build;
+  const char* summary;  // a line for --help
+};
+
+const std::map<std::string, SceneKind>& builders() {
+  static const std::map<std::string, SceneKind> all = {
+      {"chain",
+       {[](Scene& s, int) { buildChain(s, false); },
+        "50 capsule links of 0.1 kg on ball joints, the last 10 kg, hanging from a pin"}},
+      {"chain_swing",
+       {[](Scene& s, int) { buildChain(s, true); }, "the same chain released horizontally"}},
+      {"stack", {[](Scene& s, int) { buildStack(s); }, "10 boxes of 0.5 m, 1 kg, on the plane"}},
+      {"pyramid",
+       {[](Scene& s, int) { buildPyramid(s); },
+        "a pyramid of boxes on a base of 20 (0.5 m, 1 kg)"}},
+      {"ragdoll",
+       {[](Scene& s, int) { buildRagdoll(s); },
+        "pelvis, torso, head and two thighs on hinges with stops and a ball, thrown"}},
+      {"cloth",
+       {[](Scene& s, int n) { buildCloth(s, n > 0 ? n : 32); },
+        "N x N boxes on ball joints (--size, 32), two corners pinned, falling on a cube"}},
+      {"softcube",
+       {[](Scene& s, int) { buildSoftCube(s); },
+        "5 x 5 x 5 boxes on 300 fixed joints, dropped turned on the plane"}},
+      {"hair",
+       {[](Scene& s, int) { buildHair(s); },
+        "64 strands of 16 capsules on ball joints standing out of a head sphere"}},
+      {"star",
+       {[](Scene& s, int) { buildStar(s); },
+        "ODE's demo_I: a 0.1 kg anchor carrying ten heavier particles on ball joints, spinning"}},
   };
   return all;
 }
@@ -294,6 +314,11 @@ const std::vector<std::string>& sceneNames() {
   return names;
 }
 
+std::string sceneSummary(const std::string& name) {
+  const auto it = builders().find(name);
+  return it == builders().end() ? std::string() : it->second.summary;
+}
+
 std::unique_ptr<Scene> makeScene(const std::string& name, int size) {
   const auto it = builders().find(name);
   if (it == builders().end()) {
@@ -306,7 +331,7 @@ std::unique_ptr<Scene> makeScene(const std::string& name, int size) {
     throw std::invalid_argument("scene size " + std::to_string(size) + " is not in 0..256");
   auto scene = std::make_unique<Scene>();
   scene->setName(name == "cloth" ? "cloth" + std::to_string(size > 0 ? size : 32) : name);
-  it->second(*scene, size);
+  it->second.build(*scene, size);
   return scene;
 }
 

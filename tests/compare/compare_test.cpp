@@ -43,6 +43,13 @@ TEST(CompareScenes, BuiltAsScenesMdSays) {
   }
 }
 
+// --help gives every built-in scene a line saying what it is.
+TEST(CompareScenes, EveryBuiltInSceneSaysWhatItIs) {
+  for (const std::string& name : sceneNames())
+    EXPECT_GT(sceneSummary(name).size(), 20u) << name;
+  EXPECT_TRUE(sceneSummary("nonsense").empty());
+}
+
 TEST(CompareScenes, UnknownScenesAndSizesAreRefused) {
   try {
     makeScene("clothes");
