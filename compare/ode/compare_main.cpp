@@ -4,12 +4,14 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <stdexcept>
 
 #include "blockstep/blockstep_ode.h"
@@ -39,7 +41,7 @@ nlohmann::json summary(const RunResult& r, double quickSolveMs) {
   nlohmann::json j;
   j["scene"] = r.scene;
   j["stepper"] = r.stepper;
-  j["frames"] = r.frames.size();
+  j["frames"] = r.framesRun;
   j["frames_asked"] = r.framesAsked;
   j["median_solve_ms"] = r.medianSolveMs;
   j["median_collide_ms"] = r.medianCollideMs;
@@ -125,6 +127,132 @@ std::string note(const RunResult& r) {
 
 }  // namespace
 
+// Where a run's per-frame CSV goes.
+std::filesystem::path csvPath(const std::string& out, const RunResult& r) {
+  std::string file = r.scene + "_" + r.stepper + ".csv";
+  for (char& c : file)
+    if (c == ':') c = '_';
+  return std::filesystem::path(out) / file;
+}
+
+// A run's results without its per-frame records, as a --jobs child hands
+// them back.
+nlohmann::json resultToJson(const RunResult& r) {
+  return {{"scene", r.scene},
+          {"stepper", r.stepper},
+          {"frames_asked", r.framesAsked},
+          {"frames_run", r.framesRun},
+          {"exploded", r.exploded},
+          {"runaway_frames", r.runawayFrames},
+          {"ode_stepped_frames", r.odeSteppedFrames},
+          {"stopped_because", r.stoppedBecause},
+          {"ode_messages", r.odeMessages},
+          {"median_solve_ms", r.medianSolveMs},
+          {"median_collide_ms", r.medianCollideMs},
+          {"max_separation", r.maxSeparation},
+          {"rms_separation", r.rmsSeparation},
+          {"max_angle", r.maxAngle},
+          {"max_penetration", r.maxPenetration},
+          {"last_second_penetration", r.lastSecondPenetration},
+          {"drift", r.drift}};
+}
+
+RunResult resultFromJson(const nlohmann::json& j) {
+  RunResult r;
+  r.scene = j.at("scene");
+  r.stepper = j.at("stepper");
+  r.framesAsked = j.at("frames_asked");
+  r.framesRun = j.at("frames_run");
+  r.exploded = j.at("exploded");
+  r.runawayFrames = j.at("runaway_frames");
+  r.odeSteppedFrames = j.at("ode_stepped_frames");
+  r.stoppedBecause = j.at("stopped_because");
+  r.odeMessages = j.at("ode_messages");
+  r.medianSolveMs = j.at("median_solve_ms");
+  r.medianCollideMs = j.at("median_collide_ms");
+  r.maxSeparation = j.at("max_separation");
+  r.rmsSeparation = j.at("rms_separation");
+  r.maxAngle = j.at("max_angle");
+  r.maxPenetration = j.at("max_penetration");
+  r.lastSecondPenetration = j.at("last_second_penetration");
+  r.drift = j.at("drift");
+  return r;
+}
+
+// One run of the comparison: a scene and a stepper.
+struct Job {
+  std::string scene;
+  Stepper stepper;
+};
+
+// One run on a freshly built scene, its CSV written when asked for.
+RunResult runOne(const Job& job, int size, const RunOptions& options, const std::string& out) {
+  auto scene = buildScene(job.scene, size);
+  RunResult r = run(*scene, job.stepper, options);
+  if (!out.empty()) writeCsv(csvPath(out, r), r);
+  return r;
+}
+
+// Every run, `jobs` at a time, each in a process of its own (a fork of
+// this one, so it starts from the same ODE set-up): it steps its run,
+// writes its CSV and hands its results back as JSON in a file of a
+// temporary folder. A run whose process dies says so; the others go on.
+// The results come back in the order the runs were asked for.
+std::vector<RunResult> runInProcesses(const std::vector<Job>& all, int jobs, int size,
+                                      const RunOptions& options, const std::string& out) {
+  std::string dir = (std::filesystem::temp_directory_path() / "blockstep-compare-XXXXXX").string();
+  if (!mkdtemp(dir.data())) throw std::runtime_error("cannot make a temporary folder");
+  std::vector<RunResult> results(all.size());
+  std::map<pid_t, std::size_t> running;
+  auto resultFile = [&dir](std::size_t k) {
+    return std::filesystem::path(dir) / (std::to_string(k) + ".json");
+  };
+  auto collect = [&] {
+    int status = 0;
+    const pid_t pid = wait(&status);
+    if (pid < 0) throw std::runtime_error("lost a run's process");
+    const std::size_t k = running.at(pid);
+    running.erase(pid);
+    std::ifstream in(resultFile(k));
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && in) {
+      results[k] = resultFromJson(nlohmann::json::parse(in));
+      return;
+    }
+    RunResult& r = results[k];
+    r.scene = all[k].scene;
+    r.stepper = all[k].stepper.label;
+    r.framesAsked = options.frames;
+    r.stoppedBecause =
+        WIFSIGNALED(status)
+            ? "its process died (signal " + std::to_string(WTERMSIG(status)) + ")"
+            : "its process failed (exit " + std::to_string(WEXITSTATUS(status)) + ")";
+  };
+  for (std::size_t next = 0; next < all.size() || !running.empty();) {
+    if (next < all.size() && static_cast<int>(running.size()) < jobs) {
+      std::fflush(nullptr);  // nothing buffered is written twice
+      const pid_t pid = fork();
+      if (pid < 0) throw std::runtime_error("cannot start a run's process");
+      if (pid == 0) {
+        int code = 0;
+        try {
+          std::ofstream(resultFile(next)) << resultToJson(runOne(all[next], size, options, out));
+        } catch (const std::exception& e) {
+          std::fprintf(stderr, "blockstep-compare: %s %s: %s\n", all[next].scene.c_str(),
+                       all[next].stepper.label.c_str(), e.what());
+          code = 3;
+        }
+        std::fflush(nullptr);
+        _exit(code);
+      }
+      running[pid] = next++;
+      continue;
+    }
+    collect();
+  }
+  std::filesystem::remove_all(dir);
+  return results;
+}
+
 // --help's list of scenes and steppers, a line each.
 std::string helpFooter() {
   std::string text = "\nScenes (--scene; default: all but star):\n";
@@ -185,6 +313,10 @@ int main(int argc, char** argv) {
   app.add_flag("--grid", grid,
                "error versus cost: quickstep 10/20/50 iterations x 1/2/4/10 sub-steps and "
                "blockstep 2/5/10/20/40 sub-steps, in place of --stepper");
+  int jobs = 1;
+  app.add_option("--jobs", jobs,
+                 "runs at a time, each in a process of its own (times then share the cores)")
+      ->check(CLI::Range(1, 256));
   app.footer(helpFooter());
   CLI11_PARSE(app, argc, argv);
   if (grid) steppers = costGrid();
@@ -223,8 +355,9 @@ int main(int argc, char** argv) {
   std::printf("%-12s %-22s %7s %10s %10s %9s %12s %12s %10s %10s  %s\n", "scene", "stepper",
               "frames", "solve ms", "x qs20", "coll ms", "max sep mm", "rms sep mm", "pen mm",
               "drift mm", "note");
-  // A progress line on a terminal for runs longer than a second.
-  const bool terminal = isatty(fileno(stderr)) != 0;
+  // A progress line on a terminal for runs longer than a second (one run
+  // at a time only).
+  const bool terminal = jobs == 1 && isatty(fileno(stderr)) != 0;
   double lastShown = 0.0;
   std::string running;
   if (terminal) {
@@ -235,28 +368,41 @@ int main(int argc, char** argv) {
                    options.frames, elapsed);
     };
   }
-  for (const std::string& name : scenes) {
-    // Quickstep 20 first when asked for, so the others can be read against it.
-    double quickSolveMs = 0.0;
-    std::vector<RunResult> results;
-    for (const Stepper& s : parsed) {
-      auto scene = buildScene(name, size);
-      running = scene->name() + " " + s.label;
+  std::vector<Job> jobList;
+  for (const std::string& name : scenes)
+    for (const Stepper& s : parsed)
+      jobList.push_back({name, s});
+  std::vector<RunResult> results;
+  if (jobs > 1) {
+    results = runInProcesses(jobList, jobs, size, options, out);
+  } else {
+    for (const Job& job : jobList) {
+      running = job.scene + " " + job.stepper.label;
       lastShown = 0.0;
-      results.push_back(run(*scene, s, options));
+      results.push_back(runOne(job, size, options, out));
       if (terminal && lastShown > 0.0) std::fprintf(stderr, "\r%*s\r", 70, "");
-      if (s.kind == Stepper::Kind::Quick && s.iterations == 20 && s.substeps == 1)
-        quickSolveMs = results.back().medianSolveMs;
     }
-    const bool hasJoints = !buildScene(name, size)->joints().empty();
-    for (const RunResult& r : results) {
+  }
+  for (std::size_t first = 0; first < results.size(); first += parsed.size()) {
+    const std::vector<RunResult> sceneResults(results.begin() + first,
+                                              results.begin() + first + parsed.size());
+    // Read against quickstep 20 when it was asked for.
+    double quickSolveMs = 0.0;
+    for (std::size_t k = 0; k < parsed.size(); ++k) {
+      const Stepper& s = parsed[k];
+      if (s.kind == Stepper::Kind::Quick && s.iterations == 20 && s.substeps == 1)
+        quickSolveMs = sceneResults[k].medianSolveMs;
+    }
+    const bool hasJoints = !buildScene(jobList[first].scene, size)->joints().empty();
+    for (std::size_t k = 0; k < parsed.size(); ++k) {
+      const RunResult& r = sceneResults[k];
       const double ratio = quickSolveMs > 0.0 ? r.medianSolveMs / quickSolveMs : 0.0;
-      std::printf("%-12s %-22s %7zu %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f  %s\n",
-                  r.scene.c_str(), r.stepper.c_str(), r.frames.size(), r.medianSolveMs, ratio,
+      std::printf("%-12s %-22s %7d %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f  %s\n",
+                  r.scene.c_str(), r.stepper.c_str(), r.framesRun, r.medianSolveMs, ratio,
                   r.medianCollideMs, r.maxSeparation * 1e3, r.rmsSeparation * 1e3,
                   r.maxPenetration * 1e3, r.drift * 1e3, note(r).c_str());
       nlohmann::json j = summary(r, quickSolveMs);
-      const Stepper& st = parsed[static_cast<std::size_t>(&r - results.data())];
+      const Stepper& st = parsed[k];
       j["kind"] = st.kind == Stepper::Kind::Quick    ? "quickstep"
                   : st.kind == Stepper::Kind::Direct ? "direct"
                                                      : "blockstep";
@@ -265,15 +411,11 @@ int main(int argc, char** argv) {
       j["error_m"] = sceneError(r, hasJoints);
       j["error_is"] = hasJoints ? "max joint separation" : "top-box drift";
       all.push_back(j);
-      if (!out.empty()) {
-        std::string file = r.scene + "_" + r.stepper + ".csv";
-        for (char& c : file)
-          if (c == ':') c = '_';
-        writeCsv(std::filesystem::path(out) / file, r);
-      }
     }
-    reportBeaten(results, parsed, hasJoints);
+    reportBeaten(sceneResults, parsed, hasJoints);
   }
+  if (jobs > 1)
+    std::printf("(%d runs at a time: their solve times shared the machine's cores)\n", jobs);
   if (!out.empty()) {
     std::ofstream json(std::filesystem::path(out) / "summary.json");
     json << all.dump(2) << '\n';

@@ -258,6 +258,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
       ++lastCount;
     }
   }
+  r.framesRun = static_cast<int>(r.frames.size());
   r.medianSolveMs = median(solve);
   r.medianCollideMs = median(collide);
   r.rmsSeparation = samples > 0 ? std::sqrt(sumSq / samples) : 0.0;

@@ -48,6 +48,7 @@ struct RunResult {
   std::string scene, stepper;
   std::vector<FrameRecord> frames;
   int framesAsked = 0;
+  int framesRun = 0;  // frames stepped (kept when the records are not: --jobs)
   bool exploded = false;       // a non-finite state
   int runawayFrames = 0;       // blockstep: frames its guard handed an island to ODE
   int odeSteppedFrames = 0;    // blockstep: frames ODE stepped instead (unsupported content)
