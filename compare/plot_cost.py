@@ -34,6 +34,8 @@ def series(runs):
             key = "quickstep %d it" % r["iterations"]
         elif r["kind"] == "blockstep":
             key = "blockstep" if r["stepper"] == "blockstep" else "blockstep sub-steps"
+        elif r["kind"] in ("pbd", "xpbd"):
+            key = r["kind"].upper() + " (particles)"
         else:
             key = "dWorldStep"
         lines.setdefault(key, []).append(r)
@@ -49,7 +51,8 @@ def plot_scene(scene, runs, out_dir):
     axes = axes[0]
     for label, rs in series(runs):
         x = [r["median_solve_ms"] for r in rs]
-        style = "o-" if label.startswith("quickstep") else "s-"
+        style = ("o-" if label.startswith("quickstep")
+                 else "^--" if "particles" in label else "s-")
         for ax, field in zip(axes, fields):
             y = [max(r[field] * 1e3, FLOOR * 1e3) for r in rs]
             ax.plot(x, y, style, label=label)

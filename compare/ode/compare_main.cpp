@@ -263,13 +263,18 @@ std::string helpFooter() {
   }
   text +=
       "\nSteppers (--stepper; default: quickstep:20 quickstep:20x10 direct blockstep "
-      "blockstep:substep:20):\n"
+      "blockstep:substep:20 pbd:20 xpbd:1x20):\n"
       "  quickstep:IT[xSUB]     ODE's dWorldQuickStep, IT iterations, SUB sub-steps that each\n"
       "                         collide again (as a sub-stepping program does)\n"
       "  direct                 ODE's dWorldStep (its exact LCP), under the --cap wall time\n"
       "  blockstep              blockstep as a drop-in ODE program gets it (its default)\n"
       "  blockstep:substep:N    N sub-steps of one block sweep and one relax sweep each\n"
-      "  blockstep:paper:IT     the paper's solver: one step, IT block iterations\n";
+      "  blockstep:paper:IT     the paper's solver: one step, IT block iterations\n"
+      "  pbd:IT[xSUB]           the paper's position-based baseline: a particle per body, a\n"
+      "                         distance constraint per ball joint, IT iterations (ball-joint\n"
+      "                         scenes whose bodies meet only static shapes: cloth, hair)\n"
+      "  xpbd:IT[xSUB]          the same with XPBD's compliance (the joints' ERP and CFM as a\n"
+      "                         spring): stiffness that does not depend on IT or SUB\n";
   return text;
 }
 
@@ -283,8 +288,9 @@ int main(int argc, char** argv) {
   // 20 sub-steps.
   std::vector<std::string> scenes = {"ragdoll", "cloth",       "softcube", "hair",
                                      "chain",   "chain_swing", "stack",    "pyramid"};
-  std::vector<std::string> steppers = {"quickstep:20", "quickstep:20x10", "direct", "blockstep",
-                                       "blockstep:substep:20"};
+  std::vector<std::string> steppers = {"quickstep:20", "quickstep:20x10",      "direct",
+                                       "blockstep",    "blockstep:substep:20", "pbd:20",
+                                       "xpbd:1x20"};
   RunOptions options;
   options.capSeconds = 5.0;
   int size = 0;
@@ -302,7 +308,7 @@ int main(int argc, char** argv) {
                  "write each --scene as DIR/<name>.json (the scene file format) and stop");
   app.add_option("--stepper", steppers,
                  "stepper (repeatable): quickstep:IT[xSUB], direct, blockstep, "
-                 "blockstep:substep:N, blockstep:paper:IT");
+                 "blockstep:substep:N, blockstep:paper:IT, pbd:IT[xSUB], xpbd:IT[xSUB]");
   app.add_option("--frames", options.frames, "frames per run")->check(CLI::Range(1, 1000000));
   app.add_option("--dt", options.dt, "frame step, s")->check(CLI::Range(1e-6, 1.0));
   app.add_option("--size", size, "cloth: cells per side (default 32)")->check(CLI::Range(0, 256));
@@ -403,9 +409,10 @@ int main(int argc, char** argv) {
                   r.maxPenetration * 1e3, r.drift * 1e3, note(r).c_str());
       nlohmann::json j = summary(r, quickSolveMs);
       const Stepper& st = parsed[k];
-      j["kind"] = st.kind == Stepper::Kind::Quick    ? "quickstep"
-                  : st.kind == Stepper::Kind::Direct ? "direct"
-                                                     : "blockstep";
+      j["kind"] = st.kind == Stepper::Kind::Quick       ? "quickstep"
+                  : st.kind == Stepper::Kind::Direct    ? "direct"
+                  : st.kind == Stepper::Kind::Particles ? (st.xpbd ? "xpbd" : "pbd")
+                                                        : "blockstep";
       j["iterations"] = st.iterations;
       j["substeps"] = st.substeps;
       j["error_m"] = sceneError(r, hasJoints);

@@ -24,7 +24,7 @@ double seconds(Clock::time_point a, Clock::time_point b) {
   throw std::invalid_argument(
       "stepper '" + text + "': " + why +
       " (accepted: quickstep:IT[xSUB], direct, blockstep, blockstep:substep:N, "
-      "blockstep:paper:IT; IT 1..10000, N and SUB 1..1000)");
+      "blockstep:paper:IT, pbd:IT[xSUB], xpbd:IT[xSUB]; IT 1..10000, N and SUB 1..1000)");
 }
 
 int number(const std::string& text, const std::string& digits, int lo, int hi) {
@@ -123,12 +123,20 @@ Stepper parseStepper(const std::string& text) {
     s.kind = Stepper::Kind::Block;
     return s;
   }
-  const std::string quick = "quickstep:";
-  if (text.rfind(quick, 0) == 0) {
-    const std::string rest = text.substr(quick.size());
+  // IT[xSUB] after a prefix: quickstep's and the particle steppers'.
+  auto iterationsBySubsteps = [&](const std::string& prefix) {
+    const std::string rest = text.substr(prefix.size());
     const std::size_t x = rest.find('x');
     s.iterations = number(text, rest.substr(0, x), 1, 10000);
     if (x != std::string::npos) s.substeps = number(text, rest.substr(x + 1), 1, 1000);
+  };
+  for (const char* prefix : {"quickstep:", "pbd:", "xpbd:"}) {
+    if (text.rfind(prefix, 0) != 0) continue;
+    iterationsBySubsteps(prefix);
+    if (prefix[0] != 'q') {
+      s.kind = Stepper::Kind::Particles;
+      s.xpbd = prefix[0] == 'x';
+    }
     return s;
   }
   s.kind = Stepper::Kind::Block;
@@ -146,6 +154,42 @@ Stepper parseStepper(const std::string& text) {
   reject(text, "unknown stepper");
 }
 
+void summarize(RunResult& r, const Scene& scene, const RunOptions& options) {
+  std::vector<double> solve, collide;
+  double sumSq = 0.0;
+  long samples = 0;
+  const int lastSecond = std::max(1, static_cast<int>(std::lround(1.0 / options.dt)));
+  double lastPen = 0.0;
+  int lastCount = 0;
+  for (std::size_t f = 0; f < r.frames.size(); ++f) {
+    const FrameRecord& rec = r.frames[f];
+    solve.push_back(rec.solveSeconds * 1e3);
+    collide.push_back(rec.collideSeconds * 1e3);
+    r.maxSeparation = std::max(r.maxSeparation, rec.joints.separation);
+    r.maxAngle = std::max(r.maxAngle, rec.joints.angle);
+    r.maxPenetration = std::max(r.maxPenetration, rec.penetration);
+    sumSq += rec.joints.separationSumSq;
+    r.runawayFrames += rec.handedToOde > 0;
+    r.odeSteppedFrames += rec.steppedByOde;
+    samples += rec.joints.joints;
+    if (f + lastSecond >= r.frames.size()) {
+      lastPen += rec.penetration;
+      ++lastCount;
+    }
+  }
+  r.framesRun = static_cast<int>(r.frames.size());
+  r.medianSolveMs = median(solve);
+  r.medianCollideMs = median(collide);
+  r.rmsSeparation = samples > 0 ? std::sqrt(sumSq / samples) : 0.0;
+  r.lastSecondPenetration = lastCount > 0 ? lastPen / lastCount : 0.0;
+  if (dBodyID p = scene.probe()) {
+    const dReal* now = dBodyGetPosition(p);
+    const dReal* s = scene.probeStart();
+    r.drift = std::sqrt((now[0] - s[0]) * (now[0] - s[0]) + (now[1] - s[1]) * (now[1] - s[1]) +
+                        (now[2] - s[2]) * (now[2] - s[2]));
+  }
+}
+
 RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
   if (!(options.dt > 0.0) || options.dt > 1.0 || options.frames < 1)
     throw std::invalid_argument("a run needs frames >= 1 and 0 < dt <= 1 s");
@@ -154,6 +198,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
   r.stepper = stepper.label;
   r.framesAsked = options.frames;
   r.frames.reserve(options.frames);
+  if (stepper.kind == Stepper::Kind::Particles) return runParticles(scene, stepper, options);
   const dWorldID w = scene.world();
   if (stepper.kind == Stepper::Kind::Direct) {
     const int rows = largestIslandRows(scene);
@@ -200,6 +245,8 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
           }
           break;
         }
+        case Stepper::Kind::Particles:  // runParticles() steps these
+          break;
       }
       const auto t2 = Clock::now();
       scene.clearContacts();
@@ -236,39 +283,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
 
   dSetMessageHandler(previousHandler);
   r.odeMessages = odeMessages;
-  std::vector<double> solve, collide;
-  double sumSq = 0.0;
-  long samples = 0;
-  const int lastSecond = std::max(1, static_cast<int>(std::lround(1.0 / options.dt)));
-  double lastPen = 0.0;
-  int lastCount = 0;
-  for (std::size_t f = 0; f < r.frames.size(); ++f) {
-    const FrameRecord& rec = r.frames[f];
-    solve.push_back(rec.solveSeconds * 1e3);
-    collide.push_back(rec.collideSeconds * 1e3);
-    r.maxSeparation = std::max(r.maxSeparation, rec.joints.separation);
-    r.maxAngle = std::max(r.maxAngle, rec.joints.angle);
-    r.maxPenetration = std::max(r.maxPenetration, rec.penetration);
-    sumSq += rec.joints.separationSumSq;
-    r.runawayFrames += rec.handedToOde > 0;
-    r.odeSteppedFrames += rec.steppedByOde;
-    samples += rec.joints.joints;
-    if (f + lastSecond >= r.frames.size()) {
-      lastPen += rec.penetration;
-      ++lastCount;
-    }
-  }
-  r.framesRun = static_cast<int>(r.frames.size());
-  r.medianSolveMs = median(solve);
-  r.medianCollideMs = median(collide);
-  r.rmsSeparation = samples > 0 ? std::sqrt(sumSq / samples) : 0.0;
-  r.lastSecondPenetration = lastCount > 0 ? lastPen / lastCount : 0.0;
-  if (dBodyID p = scene.probe()) {
-    const dReal* now = dBodyGetPosition(p);
-    const dReal* s = scene.probeStart();
-    r.drift = std::sqrt((now[0] - s[0]) * (now[0] - s[0]) + (now[1] - s[1]) * (now[1] - s[1]) +
-                        (now[2] - s[2]) * (now[2] - s[2]));
-  }
+  summarize(r, scene, options);
   return r;
 }
 

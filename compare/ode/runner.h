@@ -19,8 +19,12 @@ namespace blockstep::compare {
 //                          quickstep iterations (20: 10 sub-steps)
 //   blockstep:substep:N    the sub-stepped solver with N sub-steps
 //   blockstep:paper:IT     the paper's solver, one step, IT sweeps
+//   pbd:IT[xSUB]           the paper's position-based baseline on the same
+//   xpbd:IT[xSUB]          layout (compare/pbd): a particle per body, a
+//                          distance constraint per ball joint
 struct Stepper {
-  enum class Kind { Quick, Direct, Block } kind = Kind::Quick;
+  enum class Kind { Quick, Direct, Block, Particles } kind = Kind::Quick;
+  bool xpbd = false;  // Particles: XPBD (compliance from the world's ERP and CFM), else PBD
   enum class Preset { FollowQuickStep, Substepped, Paper } preset = Preset::FollowQuickStep;
   int iterations = 20;  // quickstep iterations; the paper solver's sweeps
   int substeps = 1;     // per frame (quickstep); the sub-stepped solver's
@@ -48,7 +52,7 @@ struct RunResult {
   std::string scene, stepper;
   std::vector<FrameRecord> frames;
   int framesAsked = 0;
-  int framesRun = 0;  // frames stepped (kept when the records are not: --jobs)
+  int framesRun = 0;           // frames stepped (kept when the records are not: --jobs)
   bool exploded = false;       // a non-finite state
   int runawayFrames = 0;       // blockstep: frames its guard handed an island to ODE
   int odeSteppedFrames = 0;    // blockstep: frames ODE stepped instead (unsupported content)
@@ -75,5 +79,15 @@ struct RunOptions {
 };
 
 RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options);
+
+// The particle steppers' run (particle_run.cpp): the scene turned into
+// particles once, stepped by compare/pbd, written back to the bodies each
+// frame. A scene it cannot stand for (joints other than balls, bodies that
+// collide with one another, shapes it has no particle for) is not run,
+// and stoppedBecause says why.
+RunResult runParticles(Scene& scene, const Stepper& stepper, const RunOptions& options);
+
+// A run's summary (medians, maxima, drift) from its frames.
+void summarize(RunResult& r, const Scene& scene, const RunOptions& options);
 
 }  // namespace blockstep::compare

@@ -104,8 +104,15 @@ TEST(CompareSteppers, NamedAsOnTheCommandLine) {
   EXPECT_EQ(b.preset, Stepper::Preset::Substepped);
   EXPECT_EQ(b.substeps, 20);
   EXPECT_EQ(parseStepper("blockstep:paper:10").preset, Stepper::Preset::Paper);
-  for (const char* bad : {"quickstep", "quickstep:0", "quickstep:20x", "quickstep:-3",
-                          "quickstep:1e3", "blockstep:paper:", "pbd", "quickstep:20x99999"}) {
+  const Stepper x = parseStepper("xpbd:2x10");
+  EXPECT_EQ(x.kind, Stepper::Kind::Particles);
+  EXPECT_TRUE(x.xpbd);
+  EXPECT_EQ(x.iterations, 2);
+  EXPECT_EQ(x.substeps, 10);
+  EXPECT_FALSE(parseStepper("pbd:20").xpbd);
+  for (const char* bad :
+       {"quickstep", "quickstep:0", "quickstep:20x", "quickstep:-3", "quickstep:1e3",
+        "blockstep:paper:", "pbd", "pbd:x2", "xpbd:1x0", "quickstep:20x99999"}) {
     try {
       parseStepper(bad);
       ADD_FAILURE() << bad << " was accepted";
@@ -167,6 +174,44 @@ TEST(CompareRuns, DirectSolverSkipsIslandsTooLargeForIt) {
       << skipped.stoppedBecause;
   auto small = makeScene("cloth", 8);
   EXPECT_EQ(run(*small, parseStepper("direct"), o).frames.size(), 2u);
+}
+
+// The position-based baseline runs on the ball-joint scenes it can stand
+// for, on the same layout: a hanging cloth's links stretch less with more
+// PBD iterations, and XPBD with sub-steps is stiffer than either; scenes
+// with hinges, or bodies that collide with one another, are refused with
+// the reason.
+TEST(CompareRuns, ParticleBaselineRunsTheClothAndRefusesWhatItCannotModel) {
+  RunOptions o;
+  o.frames = 60;
+  auto stretch = [&](const char* stepper) {
+    auto cloth = makeScene("cloth", 8);
+    const RunResult r = run(*cloth, parseStepper(stepper), o);
+    EXPECT_EQ(r.framesRun, 60) << stepper << ": " << r.stoppedBecause;
+    EXPECT_FALSE(r.exploded);
+    // The free edge has swung down from the pinned one (0.35 m away),
+    // onto the cube (top at 1 m) and not into it, and the pinned corners
+    // stay on their pins.
+    const dReal* free = dBodyGetPosition(cloth->bodies()[8 * 4 + 7]);
+    EXPECT_LT(free[2], 1.45) << stepper;
+    const double outside = std::max({free[2] - 1.0, std::abs(free[0]) - 0.3,
+                                     std::abs(free[1]) - 0.3});  // the cube: 0.4..1.0 m, +-0.3 m
+    EXPECT_GT(outside, 0.025 - 1e-3) << stepper;
+    EXPECT_LT(r.maxPenetration, 1e-3) << stepper;
+    const dReal* pinned = dBodyGetPosition(cloth->bodies()[0]);
+    EXPECT_NEAR(pinned[2], 1.5, 0.02) << stepper;
+    return r.maxSeparation;
+  };
+  const double few = stretch("pbd:2"), many = stretch("pbd:20"), small = stretch("xpbd:1x20");
+  EXPECT_GT(few, many);
+  EXPECT_GT(many, small);
+  EXPECT_GT(small, 0.0);
+  for (const char* scene : {"ragdoll", "softcube", "stack"}) {
+    auto s = makeScene(scene);
+    const RunResult r = run(*s, parseStepper("pbd:20"), o);
+    EXPECT_TRUE(r.frames.empty()) << scene;
+    EXPECT_EQ(r.stoppedBecause.rfind("not run: ", 0), 0u) << scene << ": " << r.stoppedBecause;
+  }
 }
 
 // A run says when blockstep's runaway guard handed an island to ODE:
