@@ -162,6 +162,10 @@ void readEnvironment() {
       v && parseReal("BLOCKSTEP_RUNAWAY_SPEED", v, x)) {
     s.runawaySpeed = x > 0.0 ? x : kInf;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_CONTACT_PERSISTENCE");
+      v && parseReal("BLOCKSTEP_CONTACT_PERSISTENCE", v, x)) {
+    s.contactPersistence = x;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_MODE")) {
     if (!std::strcmp(v, "block"))
       s.solver.blockMode = BlockMode::Block;
@@ -415,6 +419,17 @@ void dWorldGetBlockRunawayLimits(dWorldID w, dReal* energyGain, dReal* maxSpeed)
   const BridgeSettings& s = bridgeFor(w).settings();
   if (energyGain) *energyGain = s.runawayEnergyGain;
   if (maxSpeed) *maxSpeed = s.runawaySpeed;
+}
+void dWorldSetBlockContactPersistence(dWorldID w, dReal distance) {
+  if (!(distance >= 0) || !std::isfinite(distance)) {
+    say("dWorldSetBlockContactPersistence(%g): expected a finite distance >= 0 m; call ignored",
+        double(distance));
+    return;
+  }
+  bridgeFor(w).settings().contactPersistence = distance;
+}
+dReal dWorldGetBlockContactPersistence(dWorldID w) {
+  return bridgeFor(w).settings().contactPersistence;
 }
 void dWorldSetBlockTolerance(dWorldID w, dReal t) {
   explicitSettings(w).tolerance = t > 0 && t < dInfinity ? t : 0;

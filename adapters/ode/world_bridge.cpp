@@ -139,6 +139,7 @@ StepOutcome WorldBridge::step(const WorldRecord& record, double h, OdeStepper st
       gyroscopic |= dBodyGetGyroscopicMode(b) != 0;
     solver.gyroscopic = gyroscopic;
     core_.setSettings(solver);
+    core_.setContactPersistence(settings_.contactPersistence);
 
     if (!readAll(record)) return StepOutcome::Unsupported;
     syncBodies(record);  // throws on bad body state, before ODE is touched

@@ -54,6 +54,10 @@ struct ContactPoint {
   // the separation from the bodies' motion without colliding again, and
   // the friction directions across the point's normal.
   Vec3 localA = Vec3::Zero(), localB = Vec3::Zero();
+  // The separation when those anchors were made: a point kept from an
+  // earlier step (carried) measures its separation from there.
+  double anchorSeparation = 0.0;
+  bool carried = false;  // kept by contact persistence, not given this step
   Vec3 tangent1 = Vec3::UnitX(), tangent2 = Vec3::UnitY();
   // Accumulated impulses (warm starting), and summed over the last step.
   double normalImpulse = 0.0;

@@ -88,6 +88,16 @@ class World {
   // Contact points of consecutive steps closer than this (m) are the same
   // point for warm starting when the caller gives no feature ids.
   void setContactMatchDistance(double d);
+  // Contact persistence (off at 0): a body pair given fewer than three
+  // points that cannot hold a body up by themselves (their normals pass
+  // beside its centre: a coin on its rim, a hull on a corner) keeps its
+  // points of earlier steps while they stay within this distance (m) of
+  // touching and of where they touched, up to four points, as Bullet's
+  // persistent manifolds do. Colliders that report one deepest point a
+  // step (ODE's cylinder-plane, convex-convex) otherwise rock the body from
+  // point to point.
+  void setContactPersistence(double distance);
+  double contactPersistence() const { return persistDistance_; }
 
   // World settings.
   void setGravity(const Vec3& g);
@@ -121,6 +131,7 @@ class World {
   void checkStateBeforeStep(double h) const;
   void collide();
   void prepareContacts();
+  void carryContactPoints();
   void restoreRunaways();
 
   struct Saved {
@@ -141,6 +152,8 @@ class World {
   std::vector<std::int32_t> contactOrder_;  // this step's manifolds by body pair (prepareContacts)
   CollisionSettings collision_;
   double matchDistance_ = 0.02;
+  double persistDistance_ = 0.0;
+  std::vector<std::uint8_t> carriedOld_;  // per old point: carried this step (prepareContacts)
   Body worldBody_;
   Vec3 gravity_ = Vec3(0.0, 0.0, -9.81);
   SolverSettings settings_;

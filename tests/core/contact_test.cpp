@@ -662,5 +662,81 @@ TEST(Contact, SpeculativeContactsNeverPull) {
   EXPECT_NEAR(world.body(box).position.z(), 0.25, 0.005 + 1e-4) << "rests within the slop";
 }
 
+// What a collider that reports one deepest point does (ODE's cylinder-
+// plane for a coin, its convex-convex): the lowest bottom corner of a box
+// on the ground, alone.
+ContactManifold deepestCorner(const World& world, BodyId box, double half, double mu) {
+  ContactManifold all = groundContact(world, box, half);
+  int deepest = 0;
+  for (int k = 1; k < 4; ++k)
+    if (all.points[k].separation < all.points[deepest].separation) deepest = k;
+  ContactManifold m = all;
+  m.pointCount = 1;
+  m.points[0] = all.points[deepest];
+  m.points[0].feature = 0;  // no ids, as ODE gives none
+  m.surface.mu = mu;
+  return m;
+}
+
+// Contact persistence (World::setContactPersistence) against a collider
+// that gives one point a step: the box, tipped 3 degrees, must come to
+// rest flat on its face (the points of earlier steps carried), and
+// carrying must not add friction (a box slides v^2 / (2 mu g)). A ball's
+// single point holds it alone and is never carried.
+TEST(Contact, PersistenceRestsABoxGivenOnlyItsDeepestCorner) {
+  for (const double persistence : {0.0, 0.02}) {
+    World world;
+    world.setContactPersistence(persistence);
+    BodyDesc d = boxBody(Vec3(0, 0, 0.52), 2.0, Vec3(1, 1, 1));
+    d.orientation = Quat(Eigen::AngleAxisd(3.0 * kPi / 180.0, Vec3(1, 1, 0).normalized()));
+    const BodyId box = world.createBody(d);
+    double lastRotation = 0.0;
+    for (int i = 0; i < 300; ++i) {
+      if (deepestCorner(world, box, 0.5, 0.6).points[0].separation < 0.01)
+        world.addContact(deepestCorner(world, box, 0.5, 0.6));
+      world.step(1.0 / 60.0);
+      lastRotation = rotationDegrees(world.body(box).orientation);
+    }
+    std::printf("  persistence %.2f m: tilt after 5 s %.3f deg, height %.4f m, %d points\n",
+                persistence, lastRotation, world.body(box).position.z(),
+                world.contacts().empty() ? 0 : world.contacts()[0].pointCount);
+    if (persistence == 0.0) continue;
+    EXPECT_LT(lastRotation, 0.2);
+    EXPECT_NEAR(world.body(box).position.z(), 0.5, 2e-3);
+    ASSERT_EQ(world.contacts().size(), 1u);
+    EXPECT_EQ(world.contacts()[0].pointCount, 4);
+    int carried = 0;
+    for (int k = 0; k < 4; ++k)
+      carried += world.contacts()[0].points[k].carried;
+    EXPECT_EQ(carried, 3);
+  }
+  {
+    World world;
+    world.setContactPersistence(0.02);
+    const BodyId box = world.createBody(boxBody(Vec3(0, 0, 0.5), 2.0, Vec3(1, 1, 1)));
+    world.setLinearVelocity(box, Vec3(3.0, 0.0, 0.0));
+    for (int i = 0; i < 120; ++i) {
+      world.addContact(deepestCorner(world, box, 0.5, 0.3));
+      world.step(1.0 / 60.0);
+    }
+    const double analytic = 3.0 * 3.0 / (2.0 * 0.3 * 9.81);
+    EXPECT_NEAR(world.body(box).position.x(), analytic, 0.02 * analytic);
+  }
+  {
+    World world;
+    world.setContactPersistence(0.02);
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    const BodyId ball = world.createBody(test::sphereBody(Vec3(0, 0, 0.5), 1.0, 0.5));
+    world.addShape(Shape::sphere(ball, 0.5));
+    world.setLinearVelocity(ball, Vec3(1.0, 0.0, 0.0));
+    world.setAngularVelocity(ball, Vec3(0.0, 2.0, 0.0));
+    for (int i = 0; i < 60; ++i) {
+      world.step(1.0 / 60.0);
+      ASSERT_EQ(world.contacts().size(), 1u);
+      EXPECT_EQ(world.contacts()[0].pointCount, 1);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace blockstep

@@ -69,6 +69,14 @@ ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
  * BLOCKSTEP_RUNAWAY_GAIN, BLOCKSTEP_RUNAWAY_SPEED. */
 ODE_API void dWorldSetBlockRunawayLimits(dWorldID w, dReal energyGain, dReal maxSpeed);
 ODE_API void dWorldGetBlockRunawayLimits(dWorldID w, dReal* energyGain, dReal* maxSpeed);
+/* Contact persistence: a body pair ODE's collider gives one or two
+ * points that tip a body (a coin on its rim, a convex hull on a corner)
+ * keeps its points of earlier steps while they stay within this distance
+ * (m) of touching and of where they touched, up to four (default 0.005;
+ * 0: off, every step solves exactly the contacts the program made).
+ * BLOCKSTEP_CONTACT_PERSISTENCE. */
+ODE_API void dWorldSetBlockContactPersistence(dWorldID w, dReal distance);
+ODE_API dReal dWorldGetBlockContactPersistence(dWorldID w);
 
 /* What the last dWorldBlockStep (or replaced step) of w did. */
 enum {
