@@ -275,24 +275,26 @@ void World::carryContactPoints() {
   if (persistDistance_ <= 0.0 || previousContacts_.empty()) return;
   // Grown as contacts_ grows (geometrically), so a warmed-up scene whose
   // contact count wanders does not allocate each step.
-  const std::size_t n = previousContacts_.size() * kMaxManifoldPoints;
-  if (n > carriedOld_.capacity()) carriedOld_.reserve(std::max(n, 2 * carriedOld_.capacity()));
-  carriedOld_.resize(n, 0);
+  const std::size_t slots = previousContacts_.size() * kMaxManifoldPoints;
+  if (slots > carriedOld_.capacity())
+    carriedOld_.reserve(std::max(slots, 2 * carriedOld_.capacity()));
+  carriedOld_.resize(slots, 0);
   auto pairBefore = [](const ContactManifold& m, std::uint64_t key) {
     return bodyPairKey(m.bodyA, m.bodyB) < key;
   };
   const double given2 = matchDistance_ * matchDistance_;
   for (ContactManifold& m : contacts_) {
     if (m.pointCount >= 3) continue;
+    const std::uint64_t key = bodyPairKey(m.bodyA, m.bodyB);
+    auto old =
+        std::lower_bound(previousContacts_.begin(), previousContacts_.end(), key, pairBefore);
+    if (old == previousContacts_.end() || bodyPairKey(old->bodyA, old->bodyB) != key) continue;
     const Body& a = endpoint(m.bodyA);
     const Body& b = endpoint(m.bodyB);
     const bool needed =
         (m.bodyA == kWorldBody || a.type != BodyType::Dynamic || turnsAbout(m, a)) &&
         (m.bodyB == kWorldBody || b.type != BodyType::Dynamic || turnsAbout(m, b));
     if (!needed) continue;
-    const std::uint64_t key = bodyPairKey(m.bodyA, m.bodyB);
-    auto old =
-        std::lower_bound(previousContacts_.begin(), previousContacts_.end(), key, pairBefore);
     for (; old != previousContacts_.end() && bodyPairKey(old->bodyA, old->bodyB) == key; ++old) {
       const bool flipped = old->bodyA != m.bodyA;
       const double sign = flipped ? -1.0 : 1.0;

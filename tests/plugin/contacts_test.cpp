@@ -438,6 +438,24 @@ TEST(OdeContacts, BoxRidesALiftingPlatformAtItsSpeed) {
   dSpaceDestroy(space);
 }
 
+// ODE's demo_moving_convex world: g 0.5, contacts with mu infinite,
+// bounce 0.1 above 0.1 m/s and soft_cfm 0.01 (stepped at 20 Hz).
+void useMovingConvexDemo(ContactScene& c) {
+  dWorldSetGravity(c.scene.world, 0, 0, -0.5);
+  c.surface.mode = dContactBounce | dContactSoftCFM;
+  c.surface.mu = dInfinity;
+  c.surface.bounce = 0.1;
+  c.surface.bounce_vel = 0.1;
+  c.surface.soft_cfm = 0.01;
+}
+
+// A body's geom, added to the scene's space and collided with the rest.
+void addGeom(ContactScene& c, dBodyID body, dGeomID geom) {
+  c.scene.bodies.push_back(body);
+  dGeomSetBody(geom, body);
+  c.geoms.push_back(geom);
+}
+
 // ODE finds contacts once a frame, so where a landing corner is found
 // depends on the frame's phase: 1 mm above the ground one frame, 90 mm
 // deep the next (1.85 m/s at 20 Hz). Pushing it out is position
@@ -456,12 +474,7 @@ TEST(OdeContacts, BoxLandingOnACornerSettlesOnOneFaceWhateverTheFramePhase) {
                       0.47892617895180573,  -0.46279634369292311, 0.74595526633913156, 0};
   for (const double lift : {0.0, 0.003, 0.0063, 0.02, 0.05}) {
     ContactScene c;
-    dWorldSetGravity(c.scene.world, 0, 0, -0.5);
-    c.surface.mode = dContactBounce | dContactSoftCFM;
-    c.surface.mu = dInfinity;
-    c.surface.bounce = 0.1;
-    c.surface.bounce_vel = 0.1;
-    c.surface.soft_cfm = 0.01;
+    useMovingConvexDemo(c);
     dBodyID box = dBodyCreate(c.scene.world);
     dMass m;
     dMassSetBox(&m, 5.0, sides[0], sides[1], sides[2]);
@@ -469,10 +482,7 @@ TEST(OdeContacts, BoxLandingOnACornerSettlesOnOneFaceWhateverTheFramePhase) {
     dBodySetRotation(box, R);
     dBodySetPosition(box, 0.0, 0.0, 1.3803668979247719 + lift);
     dBodySetLinearVel(box, 0.0, 0.0, -1.5);
-    c.scene.bodies.push_back(box);
-    dGeomID g = dCreateBox(c.space, sides[0], sides[1], sides[2]);
-    dGeomSetBody(g, box);
-    c.geoms.push_back(g);
+    addGeom(c, box, dCreateBox(c.space, sides[0], sides[1], sides[2]));
     for (int f = 0; f < 150; ++f)
       c.step(Stepper::Block, 0.05);
     const double height = dBodyGetPosition(box)[2];
@@ -496,13 +506,8 @@ TEST(OdeContacts, BoxLandingOnACornerSettlesOnOneFaceWhateverTheFramePhase) {
 TEST(OdeContacts, CoinGivenOneRimPointAFrameLiesFlat) {
   for (const double persistence : {0.0, 0.005}) {
     ContactScene c;
-    dWorldSetGravity(c.scene.world, 0, 0, -0.5);
+    useMovingConvexDemo(c);
     dWorldSetBlockContactPersistence(c.scene.world, persistence);
-    c.surface.mode = dContactBounce | dContactSoftCFM;
-    c.surface.mu = dInfinity;
-    c.surface.bounce = 0.1;
-    c.surface.bounce_vel = 0.1;
-    c.surface.soft_cfm = 0.01;
     dBodyID coin = dBodyCreate(c.scene.world);
     dMass m;
     dMassSetCylinder(&m, 5.0, 3, 0.27, 0.092);
@@ -511,10 +516,7 @@ TEST(OdeContacts, CoinGivenOneRimPointAFrameLiesFlat) {
     dRFromAxisAndAngle(R, 1, 0.3, 0, 0.9);
     dBodySetRotation(coin, R);
     dBodySetPosition(coin, 0, 0, 0.5);
-    c.scene.bodies.push_back(coin);
-    dGeomID g = dCreateCylinder(c.space, 0.27, 0.092);
-    dGeomSetBody(g, coin);
-    c.geoms.push_back(g);
+    addGeom(c, coin, dCreateCylinder(c.space, 0.27, 0.092));
     double lowest = 1.0, speed = 0.0;
     for (int f = 0; f < 400; ++f) {
       c.step(Stepper::Block, 0.05);
