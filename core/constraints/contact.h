@@ -57,7 +57,9 @@ struct ContactPoint {
   // The separation when those anchors were made: a point kept from an
   // earlier step (carried) measures its separation from there.
   double anchorSeparation = 0.0;
-  bool carried = false;  // kept by contact persistence, not given this step
+  // Kept by contact persistence, not given this step: it holds against the
+  // normal and takes friction only from its own load (no friction force).
+  bool carried = false;
   Vec3 tangent1 = Vec3::UnitX(), tangent2 = Vec3::UnitY();
   // Accumulated impulses (warm starting), and summed over the last step.
   double normalImpulse = 0.0;

@@ -428,8 +428,15 @@ void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, dou
       t.gamma = slips[d];  // force-dependent slip (ODE slip1/2 is a CFM)
       t.impulse = warmRatio * point.tangentImpulse[d];
       if (surface.friction == ContactSurface::Friction::Force) {
-        t.lo = -mus[d];  // a force; prepare turns it into an impulse bound
-        t.hi = mus[d];
+        // A force; prepare turns it into an impulse bound. ODE gives each
+        // contact it found this force whatever the load; a point carried
+        // over (contact persistence) is not one of them and holds only
+        // against the normal. With the force, a stale point on a rolling
+        // capsule's end held that material point still (mu = dInfinity in
+        // demo_moving_convex), and the capsule was flung 0.94 m.
+        const double force = point.carried ? 0.0 : mus[d];
+        t.lo = -force;
+        t.hi = force;
       } else {
         t.frictionOf = static_cast<std::int8_t>(i);
         t.mu = mus[d];

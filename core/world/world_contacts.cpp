@@ -248,7 +248,7 @@ void World::prepareContacts() {
 namespace {
 
 // Whether the points' normals pass beside the body's centre, so that they
-// turn it: a sphere's (or a round end's) single point does not, and holds
+// turn it: a sphere's single point does not, and holds
 // it up alone; a coin's rim point does, and tips it over.
 bool turnsAbout(const ContactManifold& m, const Body& body) {
   for (int i = 0; i < m.pointCount; ++i) {
