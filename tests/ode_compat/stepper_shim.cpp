@@ -22,7 +22,13 @@
 //                              BSCOMPAT_STEPS_PER_FRAME=n, calls the
 //                              demo's step function n times per frame.
 //                              For demos with contacts whose step
-//                              function does nothing but collide and step.
+//                              function does nothing but collide, step
+//                              and move geoms without a body: such a geom
+//                              (demo_motion's lift, placed at its speed
+//                              times a clock the demo advances by its own
+//                              step each call) is put where the demo had
+//                              it at the same time, the position it asked
+//                              for on call k / n when it asks on call k.
 //   BSCOMPAT_RIGID_CONTACTS=v  contacts push out of penetration no faster
 //                              than v m/s (dWorldSetContactMaxCorrectingVel
 //                              before each step). At a fine step ODE's
@@ -43,6 +49,7 @@
 #include <ode/ode.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -175,7 +182,35 @@ int finerStep(Stepper stepper, dWorldID w, dReal h, int n) {
   return ok;
 }
 
+// Per geom without a body the program places (under
+// BSCOMPAT_WHOLE_REFINE): where it was before the first time, and every
+// position asked for since.
+std::map<dGeomID, std::vector<std::array<dReal, 3>>>& askedPositions() {
+  static std::map<dGeomID, std::vector<std::array<dReal, 3>>> asked;
+  return asked;
+}
+
+// A geom placed once before the first step and not again before the
+// second was set up, not moved: it goes where it was asked to (the first
+// step of h / n saw it 1 / n of the way there).
+void placeSetUpGeoms() {
+  static long steps = 0;
+  if (++steps != 2) return;
+  auto& asked = askedPositions();
+  for (auto it = asked.begin(); it != asked.end();) {
+    if (it->second.size() != 2) {
+      ++it;
+      continue;
+    }
+    const std::array<dReal, 3>& p = it->second.back();
+    static const auto set = real<void (*)(dGeomID, dReal, dReal, dReal)>("dGeomSetPosition");
+    set(it->first, p[0], p[1], p[2]);
+    it = asked.erase(it);
+  }
+}
+
 int step(dWorldID w, dReal h, const char* name) {
+  placeSetUpGeoms();
   limitContactPushOut(w);
   const int n = refinement();
   if (n > 1) return refinedStep(w, scaled(h), n);
@@ -294,6 +329,41 @@ extern "C" dJointID dJointCreateContact(dWorldID w, dJointGroupID g, const dCont
   dContact finer = *c;
   finer.surface.soft_cfm /= n;
   return create(w, g, &finer);
+}
+
+// Under BSCOMPAT_WHOLE_REFINE a geom without a body that the program
+// places each step moves at the pace of the finer steps (see the top).
+extern "C" void dGeomSetPosition(dGeomID g, dReal x, dReal y, dReal z) {
+  static const auto set = real<void (*)(dGeomID, dReal, dReal, dReal)>("dGeomSetPosition");
+  const int n = wholeRefinement();
+  if (n == 1 || dGeomGetBody(g) || calledFromOde(__builtin_return_address(0)))
+    return set(g, x, y, z);
+  std::vector<std::array<dReal, 3>>& history = askedPositions()[g];
+  if (history.empty()) {
+    const dReal* p = dGeomGetPosition(g);
+    history.push_back({p[0], p[1], p[2]});
+  }
+  history.push_back({x, y, z});
+  const std::size_t call = history.size() - 1;
+  const std::size_t before = call / n;
+  const dReal t = dReal(call % n) / n;
+  const std::array<dReal, 3>& a = history[before];
+  const std::array<dReal, 3>& b = history[std::min(before + 1, call)];
+  set(g, a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2]));
+}
+
+// A body the program places while it moves one geom without a body is
+// placed as far from where the program asked as that geom is: demo_motion
+// drops its objects above where its clock says the lift is, n times
+// further on than the lift is under BSCOMPAT_WHOLE_REFINE.
+extern "C" void dBodySetPosition(dBodyID b, dReal x, dReal y, dReal z) {
+  static const auto set = real<void (*)(dBodyID, dReal, dReal, dReal)>("dBodySetPosition");
+  const auto& moved = askedPositions();
+  if (wholeRefinement() == 1 || moved.size() != 1 || calledFromOde(__builtin_return_address(0)))
+    return set(b, x, y, z);
+  const dReal* at = dGeomGetPosition(moved.begin()->first);
+  const std::array<dReal, 3>& asked = moved.begin()->second.back();
+  set(b, x + at[0] - asked[0], y + at[1] - asked[1], z + at[2] - asked[2]);
 }
 
 extern "C" int dWorldQuickStep(dWorldID w, dReal h) {
