@@ -42,8 +42,26 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-void configure(dWorldID w, const Stepper& s) {
-  dWorldSetQuickStepNumIterations(w, s.kind == Stepper::Kind::Quick ? s.iterations : 20);
+void configure(Scene& scene, const Stepper& s) {
+  const dWorldID w = scene.world();
+  const Overrides& o = s.overrides;
+  if (o.erp) dWorldSetERP(w, *o.erp);
+  if (o.cfm) dWorldSetCFM(w, *o.cfm);
+  // ODE's ball and fixed joints take the world's ERP and CFM when they are
+  // made and keep them (hinges and contacts read the world's each step):
+  // set on the world alone, a sweep over ERP changed nothing on a chain.
+  for (const JointRecord& j : scene.joints()) {
+    void (*setParam)(dJointID, int, dReal) = j.kind == JointKind::Ball    ? dJointSetBallParam
+                                             : j.kind == JointKind::Fixed ? dJointSetFixedParam
+                                                                          : nullptr;
+    if (!setParam) continue;
+    if (o.erp) setParam(j.joint, dParamERP, *o.erp);
+    if (o.cfm) setParam(j.joint, dParamCFM, *o.cfm);
+  }
+  // The drop-in blockstep follows the quickstep iterations a program sets.
+  const bool follows =
+      s.kind == Stepper::Kind::Block && s.preset == Stepper::Preset::FollowQuickStep;
+  dWorldSetQuickStepNumIterations(w, s.kind == Stepper::Kind::Quick || follows ? s.iterations : 20);
   if (s.kind != Stepper::Kind::Block) return;
   switch (s.preset) {
     case Stepper::Preset::FollowQuickStep:
@@ -56,6 +74,14 @@ void configure(dWorldID w, const Stepper& s) {
       dWorldSetBlockPaperSolver(w, s.iterations);
       break;
   }
+  // Each leaves follow-quickstep mode, from what the world runs now.
+  if (o.sweeps) dWorldSetBlockIterations(w, *o.sweeps);
+  if (o.relax) dWorldSetBlockRelaxIterations(w, *o.relax);
+  if (o.warm) dWorldSetBlockWarmStarting(w, *o.warm ? 1 : 0);
+  if (o.rowByRow) dWorldSetBlockMode(w, *o.rowByRow ? dBlockModeRowByRow : dBlockModeBlock);
+  if (o.islandRows) dWorldSetBlockIslandBlockRows(w, *o.islandRows);
+  if (o.persistence) dWorldSetBlockContactPersistence(w, *o.persistence);
+  if (o.tolerance) dWorldSetBlockTolerance(w, *o.tolerance);
 }
 
 // ODE's own messages (dWorldStep's "LCP internal error" on stacks) are
@@ -112,26 +138,67 @@ int largestIslandRows(const Scene& scene) {
 
 }  // namespace
 
-Stepper parseStepper(const std::string& text) {
+namespace {
+
+[[noreturn]] void rejectSetting(const std::string& text, const std::string& why) {
+  std::string keys;
+  for (const auto& [key, meaning] : settingKeys())
+    keys += (keys.empty() ? "" : ", ") + key;
+  throw std::invalid_argument("stepper '" + text + "': " + why + " (settings: " + keys + ")");
+}
+
+double decimal(const std::string& text, const std::string& key, const std::string& value, double lo,
+               double hi) {
+  std::size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != value.size() || !std::isfinite(v))
+    rejectSetting(text, key + "='" + value + "' is not a number");
+  if (v < lo || v > hi) {
+    char range[120];
+    std::snprintf(range, sizeof range, "%s=%s is out of range [%g, %g]", key.c_str(), value.c_str(),
+                  lo, hi);
+    rejectSetting(text, range);
+  }
+  return v;
+}
+
+int whole(const std::string& text, const std::string& key, const std::string& value, int lo,
+          int hi) {
+  const double v = decimal(text, key, value, lo, hi);
+  if (v != std::floor(v)) rejectSetting(text, key + "='" + value + "' is not a whole number");
+  return static_cast<int>(v);
+}
+
+bool flag(const std::string& text, const std::string& key, const std::string& value) {
+  if (value == "1" || value == "on") return true;
+  if (value == "0" || value == "off") return false;
+  rejectSetting(text, key + "='" + value + "' is not 0/1 (or off/on)");
+}
+
+Stepper parseStepperName(const std::string& text, const std::string& name) {
   Stepper s;
-  s.label = text;
-  if (text == "direct") {
+  if (name == "direct") {
     s.kind = Stepper::Kind::Direct;
     return s;
   }
-  if (text == "blockstep") {
+  if (name == "blockstep") {
     s.kind = Stepper::Kind::Block;
     return s;
   }
   // IT[xSUB] after a prefix: quickstep's and the particle steppers'.
   auto iterationsBySubsteps = [&](const std::string& prefix) {
-    const std::string rest = text.substr(prefix.size());
+    const std::string rest = name.substr(prefix.size());
     const std::size_t x = rest.find('x');
     s.iterations = number(text, rest.substr(0, x), 1, 10000);
     if (x != std::string::npos) s.substeps = number(text, rest.substr(x + 1), 1, 1000);
   };
   for (const char* prefix : {"quickstep:", "pbd:", "xpbd:"}) {
-    if (text.rfind(prefix, 0) != 0) continue;
+    if (name.rfind(prefix, 0) != 0) continue;
     iterationsBySubsteps(prefix);
     if (prefix[0] != 'q') {
       s.kind = Stepper::Kind::Particles;
@@ -141,17 +208,151 @@ Stepper parseStepper(const std::string& text) {
   }
   s.kind = Stepper::Kind::Block;
   const std::string substep = "blockstep:substep:", paper = "blockstep:paper:";
-  if (text.rfind(substep, 0) == 0) {
+  if (name.rfind(substep, 0) == 0) {
     s.preset = Stepper::Preset::Substepped;
-    s.substeps = number(text, text.substr(substep.size()), 1, 1000);
+    s.substeps = number(text, name.substr(substep.size()), 1, 1000);
     return s;
   }
-  if (text.rfind(paper, 0) == 0) {
+  if (name.rfind(paper, 0) == 0) {
     s.preset = Stepper::Preset::Paper;
-    s.iterations = number(text, text.substr(paper.size()), 1, 10000);
+    s.iterations = number(text, name.substr(paper.size()), 1, 10000);
     return s;
   }
   reject(text, "unknown stepper");
+}
+
+bool isSettingKey(const std::string& key) {
+  for (const auto& [k, meaning] : settingKeys())
+    if (k == key) return true;
+  return false;
+}
+
+// Why a stepper does not take a setting ("" when it does).
+std::string whyNot(const Stepper& s, const std::string& key) {
+  const bool block = s.kind == Stepper::Kind::Block;
+  if (key == "erp" || key == "cfm" || key == "dt") return "";
+  if (key == "iterations") {
+    if (s.kind == Stepper::Kind::Direct) return "direct has no iterations";
+    if (block && s.preset == Stepper::Preset::Substepped)
+      return "blockstep:substep has no iterations of its own (use sweeps)";
+    return "";
+  }
+  if (key == "substeps") {
+    if (s.kind == Stepper::Kind::Direct) return "direct takes no sub-steps";
+    if (block && s.preset != Stepper::Preset::Substepped)
+      return "it takes no sub-steps (blockstep sub-steps: blockstep:substep:N)";
+    return "";
+  }
+  return block ? "" : key + " is a blockstep setting";
+}
+
+// One ",key=value" item applied to a parsed stepper.
+void applySetting(const std::string& text, const std::string& item, Stepper& s) {
+  const std::size_t eq = item.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
+    rejectSetting(text, "'" + item + "' is not key=value");
+  const std::string key = item.substr(0, eq), value = item.substr(eq + 1);
+  if (!isSettingKey(key)) rejectSetting(text, "unknown setting '" + key + "'");
+  if (const std::string why = whyNot(s, key); !why.empty()) rejectSetting(text, why);
+  Overrides& o = s.overrides;
+  if (key == "erp") {
+    o.erp = decimal(text, key, value, 0.0, 1.0);
+  } else if (key == "cfm") {
+    o.cfm = decimal(text, key, value, 0.0, 1e6);
+  } else if (key == "dt") {
+    o.dt = decimal(text, key, value, 1e-6, 1.0);
+  } else if (key == "iterations") {
+    // The name's own IT: quickstep's and the particle steppers'
+    // iterations, the paper solver's sweeps, the quickstep iterations the
+    // drop-in blockstep follows.
+    s.iterations = whole(text, key, value, 1, 10000);
+  } else if (key == "substeps") {
+    s.substeps = whole(text, key, value, 1, 1000);
+  } else if (key == "sweeps") {
+    o.sweeps = whole(text, key, value, 1, 10000);
+  } else if (key == "relax") {
+    o.relax = whole(text, key, value, 0, 1000);
+  } else if (key == "warm") {
+    o.warm = flag(text, key, value);
+  } else if (key == "mode") {
+    if (value != "block" && value != "row")
+      rejectSetting(text, "mode='" + value + "' is not block or row");
+    o.rowByRow = value == "row";
+  } else if (key == "island_rows") {
+    o.islandRows = whole(text, key, value, 0, 1000000);
+  } else if (key == "persistence") {
+    o.persistence = decimal(text, key, value, 0.0, 1.0);
+  } else if (key == "tolerance") {
+    o.tolerance = decimal(text, key, value, 0.0, 1e6);
+  }
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, std::string>> settingKeys() {
+  return {{"erp", "the world's ERP, 0..1 (every stepper)"},
+          {"cfm", "the world's CFM (every stepper)"},
+          {"dt", "the frame step, s"},
+          {"iterations", "the name's IT: quickstep, pbd, xpbd, blockstep:paper, blockstep"},
+          {"substeps", "the name's SUB: quickstep, pbd, xpbd, blockstep:substep (its N)"},
+          {"sweeps", "blockstep: velocity sweeps per sub-step"},
+          {"relax", "blockstep: relax sweeps per sub-step"},
+          {"warm", "blockstep: warm starting, 0 or 1"},
+          {"mode", "blockstep: block (one block per joint) or row (row by row)"},
+          {"island_rows", "blockstep: island blocks up to this many joint rows, 0: off"},
+          {"persistence", "blockstep: contact persistence, m, 0: off"},
+          {"tolerance", "blockstep: stop sweeping below this residual, m/s, 0: off"}};
+}
+
+std::vector<std::string> sweepLabels(const std::vector<std::string>& labels,
+                                     const std::string& sweep) {
+  const std::size_t eq = sweep.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == sweep.size())
+    throw std::invalid_argument("--sweep '" + sweep + "' is not key=v1,v2,...");
+  const std::string key = sweep.substr(0, eq);
+  std::vector<std::string> values;
+  std::size_t at = eq + 1;
+  while (at <= sweep.size()) {
+    std::size_t comma = sweep.find(',', at);
+    if (comma == std::string::npos) comma = sweep.size();
+    if (comma == at) throw std::invalid_argument("--sweep '" + sweep + "' has an empty value");
+    values.push_back(sweep.substr(at, comma - at));
+    at = comma + 1;
+  }
+  if (!isSettingKey(key)) {
+    std::string keys;
+    for (const auto& [k, meaning] : settingKeys())
+      keys += (keys.empty() ? "" : ", ") + k;
+    throw std::invalid_argument("--sweep '" + sweep + "': unknown setting '" + key +
+                                "' (settings: " + keys + ")");
+  }
+  // A stepper that does not take the setting runs once, as it is.
+  std::vector<std::string> out;
+  bool anyTakes = false;
+  for (const std::string& label : labels) {
+    if (!whyNot(parseStepper(label), key).empty()) {
+      out.push_back(label);
+      continue;
+    }
+    anyTakes = true;
+    for (const std::string& v : values)
+      out.push_back(label + "," + key + "=" + v);
+  }
+  if (!anyTakes)
+    throw std::invalid_argument("--sweep '" + sweep + "': none of the steppers takes " + key);
+  return out;
+}
+
+Stepper parseStepper(const std::string& text) {
+  const std::size_t comma = text.find(',');
+  Stepper s = parseStepperName(text, text.substr(0, comma));
+  s.label = text;
+  for (std::size_t at = comma; at != std::string::npos;) {
+    const std::size_t next = text.find(',', at + 1);
+    applySetting(text, text.substr(at + 1, next == std::string::npos ? next : next - at - 1), s);
+    at = next;
+  }
+  return s;
 }
 
 void summarize(RunResult& r, const Scene& scene, const RunOptions& options) {
@@ -190,7 +391,9 @@ void summarize(RunResult& r, const Scene& scene, const RunOptions& options) {
   }
 }
 
-RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
+RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
+  RunOptions options = given;
+  if (stepper.overrides.dt) options.dt = *stepper.overrides.dt;
   if (!(options.dt > 0.0) || options.dt > 1.0 || options.frames < 1)
     throw std::invalid_argument("a run needs frames >= 1 and 0 < dt <= 1 s");
   RunResult r;
@@ -198,8 +401,11 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
   r.stepper = stepper.label;
   r.framesAsked = options.frames;
   r.frames.reserve(options.frames);
-  if (stepper.kind == Stepper::Kind::Particles) return runParticles(scene, stepper, options);
   const dWorldID w = scene.world();
+  if (stepper.kind == Stepper::Kind::Particles) {
+    configure(scene, stepper);  // XPBD's compliance comes from the world's ERP and CFM
+    return runParticles(scene, stepper, options);
+  }
   if (stepper.kind == Stepper::Kind::Direct) {
     const int rows = largestIslandRows(scene);
     if (rows > options.directRowLimit) {
@@ -208,7 +414,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options) {
       return r;
     }
   }
-  configure(w, stepper);
+  configure(scene, stepper);
   odeMessages = 0;
   // Quickstep shuffles its rows with ODE's random numbers: every run
   // starts them alike, so a run repeats whatever ran before it.

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -22,17 +23,45 @@ namespace blockstep::compare {
 //   pbd:IT[xSUB]           the paper's position-based baseline on the same
 //   xpbd:IT[xSUB]          layout (compare/pbd): a particle per body, a
 //                          distance constraint per ball joint
+// Settings a run changes from its stepper's own, written after it as
+// ",key=value" (or swept with --sweep key=v1,v2,...); unset ones keep the
+// scene's and the stepper's defaults. settingKeys() lists them.
+struct Overrides {
+  std::optional<double> erp, cfm;  // the world's ERP and CFM (every stepper)
+  std::optional<double> dt;        // the frame step, s
+  // blockstep only.
+  std::optional<int> sweeps;          // velocity sweeps per sub-step
+  std::optional<int> relax;           // relax sweeps per sub-step
+  std::optional<bool> warm;           // warm starting
+  std::optional<bool> rowByRow;       // mode=row: one row at a time, not one block per joint
+  std::optional<int> islandRows;      // island blocks up to this many joint rows (0: off)
+  std::optional<double> persistence;  // contact persistence, m (0: off)
+  std::optional<double> tolerance;    // stop sweeping below this residual, m/s (0: off)
+};
+
 struct Stepper {
   enum class Kind { Quick, Direct, Block, Particles } kind = Kind::Quick;
   bool xpbd = false;  // Particles: XPBD (compliance from the world's ERP and CFM), else PBD
   enum class Preset { FollowQuickStep, Substepped, Paper } preset = Preset::FollowQuickStep;
   int iterations = 20;  // quickstep iterations; the paper solver's sweeps
   int substeps = 1;     // per frame (quickstep); the sub-stepped solver's
-  std::string label;    // as given
+  Overrides overrides;
+  std::string label;  // as given
 };
 
-// Throws std::invalid_argument saying what is accepted.
+// Throws std::invalid_argument saying what is accepted. After the
+// stepper's name, ",key=value" items set Overrides or, as iterations=IT
+// and substeps=SUB, the numbers of the name itself.
 Stepper parseStepper(const std::string& text);
+
+// The keys a ",key=value" item or --sweep accepts, with a line each.
+std::vector<std::pair<std::string, std::string>> settingKeys();
+
+// --sweep's "key=v1,v2,...": each stepper label once per value, with
+// ",key=value" added (checked later by parseStepper). Throws
+// std::invalid_argument for a malformed sweep.
+std::vector<std::string> sweepLabels(const std::vector<std::string>& labels,
+                                     const std::string& sweep);
 
 struct FrameRecord {
   double collideSeconds = 0.0;

@@ -122,6 +122,83 @@ TEST(CompareSteppers, NamedAsOnTheCommandLine) {
   }
 }
 
+// Settings after a stepper's name, and --sweep's expansion: a stepper
+// that does not take a setting runs once as it is; bad keys and values
+// are refused saying what is accepted.
+TEST(CompareSteppers, SettingsAfterTheNameAndSweepsOverThem) {
+  const Stepper b = parseStepper("blockstep:substep:10,sweeps=2,warm=0,mode=row,erp=0.5,dt=0.01");
+  EXPECT_EQ(b.substeps, 10);
+  EXPECT_EQ(b.overrides.sweeps, 2);
+  EXPECT_EQ(b.overrides.warm, false);
+  EXPECT_EQ(b.overrides.rowByRow, true);
+  EXPECT_EQ(b.overrides.erp, 0.5);
+  EXPECT_EQ(b.overrides.dt, 0.01);
+  EXPECT_FALSE(b.overrides.cfm.has_value());
+  const Stepper q = parseStepper("quickstep:20,iterations=50,substeps=4");
+  EXPECT_EQ(q.iterations, 50);
+  EXPECT_EQ(q.substeps, 4);
+  EXPECT_EQ(parseStepper("blockstep,iterations=40").iterations, 40);  // the quickstep it follows
+
+  const std::vector<std::string> swept = sweepLabels(
+      sweepLabels({"quickstep:20", "blockstep:substep:10"}, "sweeps=1,2"), "cfm=0,1e-3");
+  const std::vector<std::string> expected = {"quickstep:20,cfm=0",
+                                             "quickstep:20,cfm=1e-3",
+                                             "blockstep:substep:10,sweeps=1,cfm=0",
+                                             "blockstep:substep:10,sweeps=1,cfm=1e-3",
+                                             "blockstep:substep:10,sweeps=2,cfm=0",
+                                             "blockstep:substep:10,sweeps=2,cfm=1e-3"};
+  EXPECT_EQ(swept, expected);
+  for (const std::string& label : swept)
+    EXPECT_EQ(parseStepper(label).label, label);
+
+  for (const char* bad :
+       {"quickstep:20,sweeps=2", "blockstep:substep:10,iterations=3", "blockstep,substeps=4",
+        "direct,iterations=5", "blockstep,warm=2", "blockstep,mode=diagonal", "blockstep,erp=1.5",
+        "blockstep,erp=x", "blockstep,relax=1.5", "blockstep,foo=1", "blockstep,erp",
+        "blockstep,=1", "blockstep,erp=nan"}) {
+    try {
+      parseStepper(bad);
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("settings: erp, cfm, dt"), std::string::npos)
+          << e.what();
+    }
+  }
+  for (const char* bad : {"sweeps", "sweeps=", "sweeps=1,,2", "foo=1,2", "mode=block,row"}) {
+    try {
+      sweepLabels({"quickstep:20"}, bad);
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("--sweep"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// ERP and CFM set on a run reach every joint (ODE's ball joints keep the
+// world's values from when they were made: set on the world alone, a sweep
+// changed nothing). Soft joints are springs k = ERP / (h CFM): the hanging
+// chain's top joint, carrying 49 links of 0.1 kg and 10 kg, stretches
+// W h CFM / ERP at rest under blockstep and dWorldStep alike. (blockstep
+// takes a CFM at or below ODE's default 1e-5 as a rigid row: README.)
+TEST(CompareRuns, SweptErpAndCfmHangTheChainOnTheSpringTheyMake) {
+  RunOptions o;
+  o.frames = 300;
+  const double weight = (49 * 0.1 + 10.0) * 9.81;
+  for (const std::string& label : sweepLabels(
+           sweepLabels({"blockstep:substep:10", "direct"}, "cfm=1e-4,3e-4"), "erp=0.2,0.5")) {
+    const Stepper stepper = parseStepper(label);
+    auto chain = makeScene("chain");
+    const RunResult r = run(*chain, stepper, o);
+    ASSERT_EQ(r.framesRun, 300) << label << ": " << r.stoppedBecause;
+    const double expected = weight * o.dt * *stepper.overrides.cfm / *stepper.overrides.erp;
+    const double stretch = r.frames.back().joints.separation;
+    std::printf("  %-40s top joint %.4f mm at rest (W h CFM / ERP %.4f mm)\n", label.c_str(),
+                stretch * 1e3, expected * 1e3);
+    EXPECT_NEAR(stretch, expected, 0.01 * expected) << label;
+    EXPECT_EQ(dJointGetBallParam(chain->joints().front().joint, dParamERP), *stepper.overrides.erp);
+  }
+}
+
 // SCENES.md's figures, in one run: the 100:1 chain hanging at rest
 // stretches 0.2 m under quickstep 20, not at all under dWorldStep, and
 // blockstep holds it as dWorldStep does.
