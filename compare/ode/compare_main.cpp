@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "blockstep/blockstep_ode.h"
+#include "compare/ode/convergence.h"
 #include "compare/ode/runner.h"
 #include "compare/ode/scene_file.h"
 
@@ -253,6 +254,47 @@ std::vector<RunResult> runInProcesses(const std::vector<Job>& all, int jobs, int
   return results;
 }
 
+// The convergence study of each scene (--residuals): a table of the
+// error after n sweeps from the saved state, and convergence_<scene>.csv.
+int runConvergence(const std::vector<std::string>& scenes, int size,
+                   const ConvergenceOptions& options, const std::string& out) {
+  for (const std::string& name : scenes) {
+    auto scene = buildScene(name, size);
+    const ConvergenceResult r = convergence(*scene, options);
+    std::printf(
+        "%s: one step of %.4g s from frame %d of quickstep 20 x 10 (largest joint separation "
+        "%.3f mm, %d contacts); the largest body's speed off the converged step's (%s), "
+        "m/s, and blockstep's residual, m/s:\n",
+        r.scene.c_str(), options.dt, options.atFrame, r.startSeparation * 1e3, r.contacts,
+        r.reference.c_str());
+    std::printf("  %6s %12s %12s %14s %16s %14s\n", "sweeps", "quickstep", "blockstep",
+                "blockstep rows", "blockstep island", "residual max");
+    for (int n = 1; n <= options.maxSweeps; ++n) {
+      if (n != 1 && n != 2 && n != 5 && n % 10 != 0 && n != options.maxSweeps) continue;
+      const std::size_t k = n - 1;
+      std::printf("  %6d %12.3g %12.3g %14.3g %16.3g %14.3g\n", n, r.quickstep[k], r.blockstep[k],
+                  r.blockstepRows[k], r.blockstepIsland[k],
+                  k < r.residualMax.size() ? r.residualMax[k] : 0.0);
+    }
+    if (out.empty()) continue;
+    const auto path = std::filesystem::path(out) / ("convergence_" + r.scene + ".csv");
+    std::ofstream csv(path);
+    if (!csv) throw std::runtime_error("cannot write " + path.string());
+    csv << "sweeps,quickstep_speed_error,blockstep_speed_error,blockstep_rows_speed_error,"
+           "blockstep_island_speed_error,blockstep_residual_max,blockstep_residual_rms\n";
+    for (std::size_t k = 0; k < r.quickstep.size(); ++k) {
+      csv << k + 1 << ',' << r.quickstep[k] << ',' << r.blockstep[k] << ',' << r.blockstepRows[k]
+          << ',' << r.blockstepIsland[k] << ',';
+      if (k < r.residualMax.size())
+        csv << r.residualMax[k] << ',' << r.residualRms[k];
+      else
+        csv << ',';
+      csv << '\n';
+    }
+  }
+  return 0;
+}
+
 // --help's list of scenes and steppers, a line each.
 std::string helpFooter() {
   std::string text = "\nScenes (--scene; default: all but star):\n";
@@ -330,6 +372,17 @@ int main(int argc, char** argv) {
   app.add_option("--sweep", sweeps,
                  "key=v1,v2,...: every stepper once per value, with ,key=value added "
                  "(repeatable: every combination; keys below)");
+  int residualsFrame = -1;
+  app.add_option("--residuals", residualsFrame,
+                 "convergence study in place of the runs: from the state quickstep 20 x 10 "
+                 "reaches at this frame, the error after one step given n = 1..--max-sweeps "
+                 "sweeps (quickstep, blockstep block and row by row) and blockstep's residual "
+                 "per sweep; writes convergence_<scene>.csv")
+      ->check(CLI::Range(0, 1000000));
+  ConvergenceOptions convergenceOptions;
+  app.add_option("--max-sweeps", convergenceOptions.maxSweeps,
+                 "the convergence study's largest sweep count (default 50)")
+      ->check(CLI::Range(1, 10000));
   int jobs = 1;
   app.add_option("--jobs", jobs,
                  "runs at a time, each in a process of its own (times then share the cores)")
@@ -369,6 +422,13 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (!out.empty()) std::filesystem::create_directories(out);
+  if (residualsFrame >= 0) {
+    convergenceOptions.atFrame = residualsFrame;
+    convergenceOptions.dt = options.dt;
+    const int code = runConvergence(scenes, size, convergenceOptions, out);
+    dCloseODE();
+    return code;
+  }
 
   nlohmann::json all = nlohmann::json::array();
   int labelWidth = 22;

@@ -103,8 +103,8 @@ bool finiteState(const Scene& scene) {
   return true;
 }
 
-// The joint rows of the scene's largest island (bodies joined by joints;
-// a joint to the world joins nothing): what dWorldStep factors at once.
+}  // namespace
+
 int largestIslandRows(const Scene& scene) {
   const auto& bodies = scene.bodies();
   std::vector<int> parent(bodies.size()), rows(bodies.size(), 0);
@@ -135,8 +135,6 @@ int largestIslandRows(const Scene& scene) {
     if (parent[i] == static_cast<int>(i)) largest = std::max(largest, rows[i]);
   return largest;
 }
-
-}  // namespace
 
 namespace {
 

@@ -116,6 +116,10 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options);
 // and stoppedBecause says why.
 RunResult runParticles(Scene& scene, const Stepper& stepper, const RunOptions& options);
 
+// The joint rows of the scene's largest island (bodies joined by joints;
+// a joint to the world joins nothing): what dWorldStep factors at once.
+int largestIslandRows(const Scene& scene);
+
 // A run's summary (medians, maxima, drift) from its frames.
 void summarize(RunResult& r, const Scene& scene, const RunOptions& options);
 

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <variant>
 
 #include "core/body/body.h"
@@ -46,6 +47,13 @@ struct JointCommon {
   // torque it transmitted over one step exceeds these.
   double breakForce = std::numeric_limits<double>::infinity();   // N
   double breakTorque = std::numeric_limits<double>::infinity();  // N m
+  // Where body B's side of the anchor is, when the joint is made with an
+  // error already (a joint another stepper stepped, seen first mid-run):
+  // B's anchor point is made there, so the error stays an error that the
+  // rows correct instead of becoming the joint's rest. Unset: at the
+  // anchor. Read by the joints made at an anchor point (ball, hinge,
+  // universal, cone-twist, 6-DOF, PR, PU).
+  std::optional<Vec3> anchorOnB;
 };
 
 // Point-to-point (ball and socket): 3 rows.

@@ -270,6 +270,19 @@ JointId World::createJoint(const JointDesc& desc) {
   const Body& b = endpoint(c.bodyB);
   Joint joint;
   joint.frames = std::visit([&](auto& j) { return setupJoint(j, a, b); }, d);
+  if (c.anchorOnB) {
+    const bool madeAtAnAnchor = std::holds_alternative<BallJointDesc>(d) ||
+                                std::holds_alternative<HingeJointDesc>(d) ||
+                                std::holds_alternative<UniversalJointDesc>(d) ||
+                                std::holds_alternative<ConeTwistJointDesc>(d) ||
+                                std::holds_alternative<SixDofJointDesc>(d) ||
+                                std::holds_alternative<PrismaticRotoideJointDesc>(d) ||
+                                std::holds_alternative<PrismaticUniversalJointDesc>(d);
+    if (!madeAtAnAnchor || !c.anchorOnB->allFinite())
+      throw Error(std::string(jointKindName(d)) + " joint: anchorOnB " +
+                  (madeAtAnAnchor ? "is not finite" : "is for joints made at an anchor point"));
+    joint.frames.localAnchorB = b.localPoint(*c.anchorOnB);
+  }
   joint.desc = d;
   ++liveJoints_;
   return storeInSlot(joints_, freeJoints_, joint);

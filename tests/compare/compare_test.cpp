@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "blockstep/blockstep_ode.h"
+#include "compare/ode/convergence.h"
 #include "compare/ode/runner.h"
 #include "compare/ode/scene_file.h"
 #include "support/ode_library.h"
@@ -197,6 +198,33 @@ TEST(CompareRuns, SweptErpAndCfmHangTheChainOnTheSpringTheyMake) {
     EXPECT_NEAR(stretch, expected, 0.01 * expected) << label;
     EXPECT_EQ(dJointGetBallParam(chain->joints().front().joint, dParamERP), *stepper.overrides.erp);
   }
+}
+
+// The convergence study (--residuals): from a state quickstep left
+// stretched (the 100:1 chain swinging, 7.5 mm apart at frame 60), one step
+// of blockstep with island blocks is dWorldStep's step (its joint rows
+// solved exactly), where quickstep and per-joint block sweeps are still
+// far off. Before, blockstep took the stretch it first saw as the joint's
+// rest and its exact step was 1.03 m/s off dWorldStep's.
+TEST(CompareRuns, ConvergenceStudyFromAStretchedChainMeetsDWorldStep) {
+  auto chain = makeScene("chain_swing");
+  ConvergenceOptions o;
+  o.atFrame = 60;
+  o.maxSweeps = 5;
+  const ConvergenceResult r = convergence(*chain, o);
+  std::printf(
+      "  from %.2f mm apart, after 1 sweep: quickstep %.3g m/s off dWorldStep, blockstep "
+      "%.3g, island blocks %.3g\n",
+      r.startSeparation * 1e3, r.quickstep[0], r.blockstep[0], r.blockstepIsland[0]);
+  EXPECT_EQ(r.reference, "dWorldStep");
+  EXPECT_GT(r.startSeparation, 5e-3);
+  ASSERT_EQ(r.blockstepIsland.size(), 5u);
+  for (double e : r.blockstepIsland)
+    EXPECT_LT(e, 1e-9);
+  EXPECT_GT(r.quickstep.back(), 0.1);
+  EXPECT_GT(r.blockstep.back(), 0.1);
+  ASSERT_EQ(r.residualMax.size(), 5u);
+  EXPECT_LT(r.residualMax.back(), r.residualMax.front());
 }
 
 // SCENES.md's figures, in one run: the 100:1 chain hanging at rest
