@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <algorithm>
+#include "adapters/ode/body_state.h"
 #include "adapters/ode/registry.h"
 #include "adapters/ode/world_bridge.h"
 
@@ -244,11 +245,7 @@ namespace {
 
 // A body ODE's stepper must leave alone while it steps the islands
 // blockstep handed back.
-struct HeldBody {
-  dBodyID body;
-  dVector3 position, linear, angular;
-  dQuaternion orientation;
-};
+using HeldBody = ode::OdeBodyState;
 
 // Steps only the handed-back islands with ODE's stepper: every other
 // enabled body is disabled for the call (ODE steps enabled islands only)
@@ -259,12 +256,7 @@ int stepWithOde(dWorldID w, dReal h, int (*odeStep)(dWorldID, dReal), std::vecto
     dBodyDisable(k.body);
   const int result = odeStep(w, h);
   for (const HeldBody& k : held) {
-    if (dBodyIsEnabled(k.body)) {
-      dBodySetPosition(k.body, k.position[0], k.position[1], k.position[2]);
-      dBodySetQuaternion(k.body, k.orientation);
-      dBodySetLinearVel(k.body, k.linear[0], k.linear[1], k.linear[2]);
-      dBodySetAngularVel(k.body, k.angular[0], k.angular[1], k.angular[2]);
-    }
+    if (dBodyIsEnabled(k.body)) k.putBack();
     dBodyEnable(k.body);
   }
   return result;
@@ -300,15 +292,7 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeSte
         std::sort(runaway.begin(), runaway.end());
         for (dBodyID b : registry.world(w)->bodies) {
           if (!dBodyIsEnabled(b) || std::binary_search(runaway.begin(), runaway.end(), b)) continue;
-          HeldBody k{b, {}, {}, {}, {}};
-          for (int i = 0; i < 3; ++i) {
-            k.position[i] = dBodyGetPosition(b)[i];
-            k.linear[i] = dBodyGetLinearVel(b)[i];
-            k.angular[i] = dBodyGetAngularVel(b)[i];
-          }
-          for (int i = 0; i < 4; ++i)
-            k.orientation[i] = dBodyGetQuaternion(b)[i];
-          held.push_back(k);
+          held.push_back(HeldBody::of(b));
         }
         state.handedToOde = static_cast<int>(runaway.size());
         if (!state.saidRunaway) {

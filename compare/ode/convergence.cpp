@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "adapters/ode/body_state.h"
 #include "blockstep/blockstep_ode.h"
 #include "compare/ode/runner.h"
 
@@ -12,35 +13,17 @@ namespace blockstep::compare {
 
 namespace {
 
-// What a body is at the saved state.
-struct BodyState {
-  dBodyID body;
-  dVector3 position, linear, angular;
-  dQuaternion orientation;
-};
-
-std::vector<BodyState> save(const Scene& scene) {
-  std::vector<BodyState> state;
-  for (dBodyID b : scene.bodies()) {
-    BodyState& s = state.emplace_back();
-    s.body = b;
-    for (int k = 0; k < 3; ++k) {
-      s.position[k] = dBodyGetPosition(b)[k];
-      s.linear[k] = dBodyGetLinearVel(b)[k];
-      s.angular[k] = dBodyGetAngularVel(b)[k];
-    }
-    for (int k = 0; k < 4; ++k)
-      s.orientation[k] = dBodyGetQuaternion(b)[k];
-  }
+std::vector<ode::OdeBodyState> save(const Scene& scene) {
+  std::vector<ode::OdeBodyState> state;
+  for (dBodyID b : scene.bodies())
+    state.push_back(ode::OdeBodyState::of(b));
   return state;
 }
 
-void restore(const std::vector<BodyState>& state) {
-  for (const BodyState& s : state) {
-    dBodySetPosition(s.body, s.position[0], s.position[1], s.position[2]);
-    dBodySetQuaternion(s.body, s.orientation);
-    dBodySetLinearVel(s.body, s.linear[0], s.linear[1], s.linear[2]);
-    dBodySetAngularVel(s.body, s.angular[0], s.angular[1], s.angular[2]);
+// Back to the saved state, forces cleared and every body awake.
+void restore(const std::vector<ode::OdeBodyState>& state) {
+  for (const ode::OdeBodyState& s : state) {
+    s.putBack();
     dBodySetForce(s.body, 0, 0, 0);
     dBodySetTorque(s.body, 0, 0, 0);
     dBodyEnable(s.body);
@@ -51,8 +34,8 @@ enum class Solve { Quick, Block, BlockRows, BlockIsland, Direct };
 
 // The bodies' linear velocities after one step of dt from the saved state
 // with n sweeps.
-std::vector<double> stepFrom(Scene& scene, const std::vector<BodyState>& state, Solve solve, int n,
-                             double dt, bool recordResiduals = false) {
+std::vector<double> stepFrom(Scene& scene, const std::vector<ode::OdeBodyState>& state, Solve solve,
+                             int n, double dt, bool recordResiduals = false) {
   restore(state);
   const dWorldID w = scene.world();
   scene.collide();
@@ -109,7 +92,7 @@ ConvergenceResult convergence(Scene& scene, const ConvergenceOptions& options) {
       scene.clearContacts();
     }
   }
-  const std::vector<BodyState> state = save(scene);
+  const std::vector<ode::OdeBodyState> state = save(scene);
   r.startSeparation = scene.jointError().separation;
   scene.collide();
   r.contacts = scene.contactCount();

@@ -138,11 +138,17 @@ int largestIslandRows(const Scene& scene) {
 
 namespace {
 
-[[noreturn]] void rejectSetting(const std::string& text, const std::string& why) {
+// "erp, cfm, ...": what an error about a setting says is accepted.
+std::string settingKeyList() {
   std::string keys;
   for (const auto& [key, meaning] : settingKeys())
     keys += (keys.empty() ? "" : ", ") + key;
-  throw std::invalid_argument("stepper '" + text + "': " + why + " (settings: " + keys + ")");
+  return keys;
+}
+
+[[noreturn]] void rejectSetting(const std::string& text, const std::string& why) {
+  throw std::invalid_argument("stepper '" + text + "': " + why + " (settings: " + settingKeyList() +
+                              ")");
 }
 
 double decimal(const std::string& text, const std::string& key, const std::string& value, double lo,
@@ -317,13 +323,9 @@ std::vector<std::string> sweepLabels(const std::vector<std::string>& labels,
     values.push_back(sweep.substr(at, comma - at));
     at = comma + 1;
   }
-  if (!isSettingKey(key)) {
-    std::string keys;
-    for (const auto& [k, meaning] : settingKeys())
-      keys += (keys.empty() ? "" : ", ") + k;
+  if (!isSettingKey(key))
     throw std::invalid_argument("--sweep '" + sweep + "': unknown setting '" + key +
-                                "' (settings: " + keys + ")");
-  }
+                                "' (settings: " + settingKeyList() + ")");
   // A stepper that does not take the setting runs once, as it is.
   std::vector<std::string> out;
   bool anyTakes = false;
