@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
-# Installs blockstep's build and test dependencies from Debian's packages.
+# Installs blockstep's build and test dependencies from Debian's packages
+# (three.js for the comparison report's replay, Chromium to test that
+# report headless).
 # Safe to run twice: packages already present are not fetched again, and
 # `apt-get update` only runs when something is missing.
 set -euo pipefail
@@ -9,6 +11,7 @@ packages=(
   libeigen3-dev libccd-dev libode-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev python3-matplotlib
+  libjs-three chromium
 )
 
 # ODE's own unit tests and demos (tests/ode_compat) are built from ODE's

@@ -128,12 +128,24 @@ std::string note(const RunResult& r) {
 
 }  // namespace
 
-// Where a run's per-frame CSV goes.
-std::filesystem::path csvPath(const std::string& out, const RunResult& r) {
-  std::string file = r.scene + "_" + r.stepper + ".csv";
+// Where a run's files go: <prefix><scene>_<stepper><extension>, the
+// stepper's colons made underscores.
+std::filesystem::path runPath(const std::string& out, const std::string& scene,
+                              const std::string& stepper, const char* prefix,
+                              const char* extension) {
+  std::string file = prefix + scene + "_" + stepper + extension;
   for (char& c : file)
     if (c == ':') c = '_';
   return std::filesystem::path(out) / file;
+}
+
+// The recorded poses for the report's replay: float32 values as
+// RunResult::poses holds them (the scene's JSON gives the bodies).
+void writePoses(const std::filesystem::path& path, const RunResult& r) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw std::runtime_error("cannot write " + path.string());
+  out.write(reinterpret_cast<const char*>(r.poses.data()),
+            static_cast<std::streamsize>(r.poses.size() * sizeof(float)));
 }
 
 // A run's results without its per-frame records, as a --jobs child hands
@@ -190,7 +202,10 @@ struct Job {
 RunResult runOne(const Job& job, int size, const RunOptions& options, const std::string& out) {
   auto scene = buildScene(job.scene, size);
   RunResult r = run(*scene, job.stepper, options);
-  if (!out.empty()) writeCsv(csvPath(out, r), r);
+  if (!out.empty()) {
+    writeCsv(runPath(out, r.scene, r.stepper, "", ".csv"), r);
+    if (!r.poses.empty()) writePoses(runPath(out, r.scene, r.stepper, "poses_", ".bin"), r);
+  }
   return r;
 }
 
@@ -304,8 +319,8 @@ std::string helpFooter() {
     text += line;
   }
   text +=
-      "\nSteppers (--stepper; default: quickstep:20 quickstep:20x10 direct blockstep "
-      "blockstep:substep:20 pbd:20 xpbd:1x20):\n"
+      "\nSteppers (--stepper; default: quickstep:10, :20, :50, :20x4, :20x10, direct, "
+      "blockstep, blockstep:substep:5 and :20, pbd:20, xpbd:1x20):\n"
       "  quickstep:IT[xSUB]     ODE's dWorldQuickStep, IT iterations, SUB sub-steps that each\n"
       "                         collide again (as a sub-stepping program does)\n"
       "  direct                 ODE's dWorldStep (its exact LCP), under the --cap wall time\n"
@@ -331,15 +346,17 @@ int main(int argc, char** argv) {
   CLI::App app{
       "blockstep-compare: ODE scenes stepped by ODE's quickstep, ODE's dWorldStep and "
       "blockstep, measured the same way"};
-  // The default comparison: the paper's four scenes and the field's,
-  // quickstep 20 alone and with 10 sub-steps (about blockstep's cost),
-  // dWorldStep under a wall-time cap, and blockstep's drop-in default and
-  // 20 sub-steps.
+  // The default comparison: the paper's four scenes and the field's;
+  // quickstep at 10, 20 and 50 iterations and 20 with 4 and 10 sub-steps
+  // (about blockstep's costs), dWorldStep under a wall-time cap,
+  // blockstep's drop-in default and 5 and 20 sub-steps, and the paper's
+  // position-based baseline where it can stand for the scene.
   std::vector<std::string> scenes = {"ragdoll", "cloth",       "softcube", "hair",
                                      "chain",   "chain_swing", "stack",    "pyramid"};
-  std::vector<std::string> steppers = {"quickstep:20", "quickstep:20x10",      "direct",
-                                       "blockstep",    "blockstep:substep:20", "pbd:20",
-                                       "xpbd:1x20"};
+  std::vector<std::string> steppers = {
+      "quickstep:10",         "quickstep:20", "quickstep:50", "quickstep:20x4",
+      "quickstep:20x10",      "direct",       "blockstep",    "blockstep:substep:5",
+      "blockstep:substep:20", "pbd:20",       "xpbd:1x20"};
   RunOptions options;
   options.capSeconds = 5.0;
   int size = 0;
@@ -363,7 +380,14 @@ int main(int argc, char** argv) {
   app.add_option("--size", size, "cloth: cells per side (default 32)")->check(CLI::Range(0, 256));
   app.add_option("--cap", options.capSeconds, "wall-time cap of a dWorldStep run, s")
       ->check(CLI::Range(0.001, 86400.0));
-  app.add_option("--out", out, "folder for one CSV per run and summary.json");
+  app.add_option("--out", out,
+                 "folder for one CSV per run, summary.json, each scene's JSON and the recorded "
+                 "poses of the report's replay");
+  int replayStride = 2;
+  app.add_option("--replay-stride", replayStride,
+                 "with --out: record the bodies' poses every N frames for the report's 3D "
+                 "replay (0: none)")
+      ->check(CLI::Range(0, 1000000));
   bool grid = false;
   app.add_flag("--grid", grid,
                "error versus cost: quickstep 10/20/50 iterations x 1/2/4/10 sub-steps and "
@@ -421,7 +445,10 @@ int main(int argc, char** argv) {
     dCloseODE();
     return 0;
   }
-  if (!out.empty()) std::filesystem::create_directories(out);
+  if (!out.empty()) {
+    std::filesystem::create_directories(out);
+    options.poseStride = replayStride;
+  }
   if (residualsFrame >= 0) {
     convergenceOptions.atFrame = residualsFrame;
     convergenceOptions.dt = options.dt;
@@ -449,6 +476,13 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "\r%s: frame %d of %d (%.0f s)   ", running.c_str(), done,
                    options.frames, elapsed);
     };
+  }
+  if (!out.empty() && replayStride > 0) {
+    for (const std::string& name : scenes) {
+      auto scene = buildScene(name, size);
+      saveSceneFile(*scene,
+                    (std::filesystem::path(out) / ("scene_" + scene->name() + ".json")).string());
+    }
   }
   std::vector<Job> jobList;
   for (const std::string& name : scenes)
@@ -492,9 +526,15 @@ int main(int argc, char** argv) {
                   : st.kind == Stepper::Kind::Particles ? (st.xpbd ? "xpbd" : "pbd")
                                                         : "blockstep";
       j["iterations"] = st.iterations;
+      j["frame_dt"] = st.overrides.dt.value_or(options.dt);
       j["substeps"] = st.substeps;
       j["error_m"] = sceneError(r, hasJoints);
       j["error_is"] = hasJoints ? "max joint separation" : "top-box drift";
+      if (!out.empty() && replayStride > 0 && r.framesRun > 0) {
+        j["replay_stride"] = replayStride;
+        j["replay_file"] = runPath("", r.scene, r.stepper, "poses_", ".bin").string();
+        j["csv_file"] = runPath("", r.scene, r.stepper, "", ".csv").string();
+      }
       all.push_back(j);
     }
     reportBeaten(sceneResults, parsed, hasJoints);

@@ -181,6 +181,7 @@ RunResult runParticles(Scene& scene, const Stepper& stepper, const RunOptions& o
   settings.linearDamping = dWorldGetLinearDamping(w);
 
   r.frames.reserve(options.frames);
+  recordPoses(scene, 0, options, r);
   const auto start = Clock::now();
   for (int f = 0; f < options.frames; ++f) {
     FrameRecord rec;
@@ -204,6 +205,7 @@ RunResult runParticles(Scene& scene, const Stepper& stepper, const RunOptions& o
       dBodySetAngularVel(scene.bodies()[i], 0, 0, 0);
     }
     r.frames.push_back(rec);
+    recordPoses(scene, f + 1, options, r);
     if (options.onFrame) options.onFrame(f + 1, seconds(start, Clock::now()));
     if (!ps.finite()) {
       r.exploded = true;

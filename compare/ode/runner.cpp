@@ -391,6 +391,17 @@ void summarize(RunResult& r, const Scene& scene, const RunOptions& options) {
   }
 }
 
+void recordPoses(const Scene& scene, int done, const RunOptions& options, RunResult& r) {
+  if (options.poseStride <= 0 || done % options.poseStride != 0) return;
+  r.poseStride = options.poseStride;
+  for (dBodyID b : scene.bodies()) {
+    const dReal* p = dBodyGetPosition(b);
+    const dReal* q = dBodyGetQuaternion(b);
+    r.poses.insert(r.poses.end(), {float(p[0]), float(p[1]), float(p[2]), float(q[0]), float(q[1]),
+                                   float(q[2]), float(q[3])});
+  }
+}
+
 RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
   RunOptions options = given;
   if (stepper.overrides.dt) options.dt = *stepper.overrides.dt;
@@ -406,8 +417,9 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
     configure(scene, stepper);  // XPBD's compliance comes from the world's ERP and CFM
     return runParticles(scene, stepper, options);
   }
+  const int jointRows = largestIslandRows(scene);
   if (stepper.kind == Stepper::Kind::Direct) {
-    const int rows = largestIslandRows(scene);
+    const int rows = jointRows;
     if (rows > options.directRowLimit) {
       r.stoppedBecause = "not run: an island of " + std::to_string(rows) +
                          " joint rows (dWorldStep takes 15-18 s a frame at 5952)";
@@ -421,6 +433,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
   dRandSetSeed(0);
   dMessageFunction* previousHandler = dGetMessageHandler();
   dSetMessageHandler(&countMessage);
+  recordPoses(scene, 0, options, r);
   const auto start = Clock::now();
   for (int f = 0; f < options.frames; ++f) {
     FrameRecord rec;
@@ -439,9 +452,24 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
         case Stepper::Kind::Quick:
           ok = dWorldQuickStep(w, h);
           break;
-        case Stepper::Kind::Direct:
+        case Stepper::Kind::Direct: {
+          // Contacts add three rows each (normal and two friction
+          // directions): a settled pyramid's 1660 contacts made one
+          // dWorldStep take over three minutes.
+          const int rows = jointRows + 3 * scene.contactCount();
+          if (rows > options.directRowLimit) {
+            char text[160];
+            std::snprintf(text, sizeof text,
+                          "stopped at frame %d: up to %d rows with its %d contacts (dWorldStep "
+                          "is not run above %d)",
+                          f, rows, scene.contactCount(), options.directRowLimit);
+            r.stoppedBecause = text;
+            ok = -1;
+            break;
+          }
           ok = dWorldStep(w, h);
           break;
+        }
         case Stepper::Kind::Block: {
           ok = dWorldBlockStep(w, h);
           dBlockStepStats stats;
@@ -459,9 +487,11 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
       rec.collideSeconds += seconds(t0, t1);
       rec.solveSeconds += seconds(t1, t2);
     }
+    if (ok < 0) break;  // not stepped: stoppedBecause says why
     rec.joints = scene.jointError();
     rec.kineticEnergy = scene.kineticEnergy();
     r.frames.push_back(rec);
+    recordPoses(scene, f + 1, options, r);
     if (options.onFrame) options.onFrame(f + 1, seconds(start, Clock::now()));
     if (!ok) {
       r.stoppedBecause =

@@ -93,6 +93,11 @@ struct RunResult {
   double maxPenetration = 0.0;
   double lastSecondPenetration = 0.0;  // mean deepest contact over the last second
   double drift = 0.0;                  // the probe body's distance from its start, m
+  // Recorded when RunOptions::poseStride > 0: every body's pose (x, y, z,
+  // qw, qx, qy, qz) at the start and after every poseStride-th frame, body
+  // after body, frame after frame (the report's 3D replay).
+  std::vector<float> poses;
+  int poseStride = 0;
 };
 
 struct RunOptions {
@@ -105,7 +110,13 @@ struct RunOptions {
   // Called after each frame with the frames done and the seconds spent
   // (the command line's progress line); may be empty.
   std::function<void(int, double)> onFrame;
+  // Record the bodies' poses every this many frames (0: not at all).
+  int poseStride = 0;
 };
+
+// Appends the scene's body poses to r.poses when frame `done` (frames
+// stepped so far) is one to record.
+void recordPoses(const Scene& scene, int done, const RunOptions& options, RunResult& r);
 
 RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& options);
 

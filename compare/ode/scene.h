@@ -29,6 +29,16 @@ struct JointRecord {
   dQuaternion relative0{};  // body2 in body1's frame at build time (fixed joints)
 };
 
+// How a replay draws what the bodies stand for, beyond their own shapes:
+// cloth cells as one surface (a grid of bodies, row by row), hair
+// segments as curves through their strands' bodies. Indices into
+// Scene::bodies().
+struct DrawHints {
+  int surfaceColumns = 0;    // 0: no surface
+  std::vector<int> surface;  // rows x surfaceColumns bodies
+  std::vector<std::vector<int>> strands;
+};
+
 // What one frame's joints look like: the largest separation of the two
 // anchor points (m) and the largest angular error (rad: a hinge's axes
 // apart, a fixed joint's relative rotation).
@@ -62,6 +72,8 @@ class Scene {
   double kineticEnergy() const;
   // The body whose drift the scene reports (stacks: the top box), or null.
   dBodyID probe() const { return probe_; }
+  const DrawHints& drawHints() const { return draw_; }
+  DrawHints& drawHints() { return draw_; }
   const dReal* probeStart() const { return probeStart_; }
 
   // Building (scenes.cpp).
@@ -84,6 +96,7 @@ class Scene {
   std::vector<dBodyID> bodies_;
   std::vector<JointRecord> joints_;
   dBodyID probe_ = nullptr;
+  DrawHints draw_;
   dVector3 probeStart_{};
   int contactCount_ = 0;
   double deepest_ = 0.0;

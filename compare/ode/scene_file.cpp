@@ -258,7 +258,43 @@ nlohmann::json sceneToJson(const Scene& s) {
   }
   j["joints"] = joints;
   if (s.probe()) j["probe"] = indexOf(s, s.probe());
+  const DrawHints& draw = s.drawHints();
+  if (draw.surfaceColumns > 0)
+    j["draw"]["surface"] = {{"columns", draw.surfaceColumns}, {"bodies", draw.surface}};
+  if (!draw.strands.empty()) j["draw"]["strands"] = draw.strands;
   return j;
+}
+
+// A list of body indices, each in 0..count-1.
+std::vector<int> bodyIndices(const Reader& r, const json& j, int count) {
+  if (!j.is_array()) r.fail("must be an array of body indices");
+  std::vector<int> out;
+  for (std::size_t k = 0; k < j.size(); ++k) {
+    if (!j[k].is_number_integer() || j[k].get<int>() < 0 || j[k].get<int>() >= count)
+      r.at(k).fail("must be a body index 0.." + std::to_string(count - 1));
+    out.push_back(j[k].get<int>());
+  }
+  return out;
+}
+
+void readDrawHints(const Reader& r, const json& j, int count, DrawHints& draw) {
+  if (!j.is_object()) r.fail("must be an object");
+  if (j.contains("surface")) {
+    const Reader rs = r.at("surface");
+    const json& surface = j.at("surface");
+    const json& columns = rs.field(surface, "columns");
+    if (!columns.is_number_integer() || columns.get<int>() < 2)
+      rs.at("columns").fail("must be a whole number >= 2");
+    draw.surfaceColumns = columns.get<int>();
+    draw.surface = bodyIndices(rs.at("bodies"), rs.field(surface, "bodies"), count);
+    if (draw.surface.size() < 2 * static_cast<std::size_t>(draw.surfaceColumns) ||
+        draw.surface.size() % draw.surfaceColumns != 0)
+      rs.at("bodies").fail("must be at least two whole rows of 'columns' bodies");
+  }
+  if (const json* strands = r.array(j, "strands", false)) {
+    for (std::size_t k = 0; k < strands->size(); ++k)
+      draw.strands.push_back(bodyIndices(r.at("strands").at(k), (*strands)[k], count));
+  }
 }
 
 std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
@@ -373,6 +409,7 @@ std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
     }
   }
   if (j.contains("probe")) s->setProbe(body(root.at("probe"), j.at("probe"), false));
+  if (j.contains("draw")) readDrawHints(root.at("draw"), j.at("draw"), count, s->drawHints());
   return s;
 }
 

@@ -18,8 +18,14 @@
 //               { "type": "hinge", "bodies": [i, j], "anchor": [..], "axis": [..],
 //                 "lo": -0.3, "hi": 0.8 },                             (stops optional)
 //               { "type": "fixed", "bodies": [i, j] } ],               (fixed where they are)
-//   "probe": k                                                          (optional: drift of body k)
+//   "probe": k,                                                         (optional: drift of body k)
+//   "draw": { "surface": { "columns": n, "bodies": [i, ...] },         (optional: how the report's
+//             "strands": [ [i, j, ...], ... ] }                           replay draws the bodies)
 // }
+//
+// "draw" tells the report's replay what the bodies stand for: a surface
+// through a grid of bodies (row after row of `columns`; cloth), curves
+// through strands of bodies (hair). Bodies are drawn by their geoms too.
 //
 // Capsules and cylinders lie along the body's z axis, as ODE makes them.
 // Every error names the field: "bodies[3].mass.total: must be > 0".

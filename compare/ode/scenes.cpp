@@ -20,7 +20,9 @@ void buildChain(Scene& s, bool horizontal) {
   constexpr int kLinks = 50;
   constexpr double kPinZ = 6.0;
   dBodyID previous = nullptr;
+  s.drawHints().strands.emplace_back();  // links without geoms: drawn as one curve
   for (int i = 0; i < kLinks; ++i) {
+    s.drawHints().strands.back().push_back(i);
     dMass m;
     const double mass = i == kLinks - 1 ? 10.0 : 0.1;
     dMassSetCapsuleTotal(&m, mass, horizontal ? 1 : 3, 0.01, kLinkLength - 0.02);
@@ -137,6 +139,10 @@ void buildCloth(Scene& s, int n) {
       if (j + 1 < n) s.ball(at(i, j), at(i, j + 1), coord(i), coord(j) + 0.5 * kCell, kZ);
     }
   }
+  // Drawn as one surface: body i * n + j is cell (i, j).
+  s.drawHints().surfaceColumns = n;
+  for (std::size_t k = 0; k < cells.size(); ++k)
+    s.drawHints().surface.push_back(static_cast<int>(k));
   s.ball(at(0, 0), nullptr, coord(0), coord(0), kZ);
   s.ball(at(n - 1, 0), nullptr, coord(n - 1), coord(0), kZ);
 }
@@ -202,7 +208,9 @@ void buildHair(Scene& s) {
       dQSetIdentity(q);
     }
     dBodyID previous = nullptr;
+    s.drawHints().strands.emplace_back();
     for (int i = 0; i < kSegments; ++i) {
+      s.drawHints().strands.back().push_back(static_cast<int>(s.bodies().size()));
       auto along = [&](double d, int c) { return (c == 2 ? kHeadZ : 0.0) + n[c] * (kHeadR + d); };
       const double mid = (i + 0.5) * kSegLen;
       dMass m;

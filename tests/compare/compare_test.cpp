@@ -376,6 +376,10 @@ TEST(CompareSceneFiles, WrittenAndReadBackStepAlike) {
     EXPECT_EQ(copy->name(), original->name());
     ASSERT_EQ(copy->bodies().size(), original->bodies().size()) << name;
     ASSERT_EQ(copy->joints().size(), original->joints().size()) << name;
+    // The replay's drawing hints: cloth as a surface, hair and chains as strands.
+    EXPECT_EQ(copy->drawHints().surfaceColumns, original->drawHints().surfaceColumns) << name;
+    EXPECT_EQ(copy->drawHints().surface, original->drawHints().surface) << name;
+    EXPECT_EQ(copy->drawHints().strands, original->drawHints().strands) << name;
     for (const char* stepper : {"quickstep:20", "blockstep"}) {
       auto a = makeScene(name, 6);
       auto b = sceneFromJson(sceneToJson(*a));
@@ -433,6 +437,14 @@ TEST(CompareSceneFiles, BadFieldsAreNamed) {
          j["static"][0]["normal"] = {0, 0, "up"};
        },
        "static[0].normal[2]: must be a number"},
+      {[](nlohmann::json& j) {
+         j["draw"]["strands"] = {{0, 1, 9}};
+       },
+       "draw.strands[0][2]: must be a body index 0..4"},
+      {[](nlohmann::json& j) {
+         j["draw"]["surface"] = {{"columns", 2}, {"bodies", {0, 1, 2}}};
+       },
+       "draw.surface.bodies: must be at least two whole rows"},
   };
   for (const Case& c : cases) {
     nlohmann::json j = good;
