@@ -352,7 +352,8 @@ int main(int argc, char** argv) {
   // blockstep's drop-in default and 5 and 20 sub-steps, and the paper's
   // position-based baseline where it can stand for the scene.
   std::vector<std::string> scenes = {"ragdoll", "cloth",       "softcube", "hair",
-                                     "chain",   "chain_swing", "stack",    "pyramid"};
+                                     "chain",   "chain_swing", "stack",    "pyramid",
+                                     "cradle",  "car",         "bridge",   "ragdoll_pile"};
   std::vector<std::string> steppers = {
       "quickstep:10",         "quickstep:20", "quickstep:50", "quickstep:20x4",
       "quickstep:20x10",      "direct",       "blockstep",    "blockstep:substep:5",

@@ -119,7 +119,10 @@ int largestIslandRows(const Scene& scene) {
     return static_cast<int>(std::find(bodies.begin(), bodies.end(), b) - bodies.begin());
   };
   for (const JointRecord& j : scene.joints()) {
-    const int n = j.kind == JointKind::Ball ? 3 : j.kind == JointKind::Hinge ? 5 : 6;
+    const int n = j.kind == JointKind::Ball     ? 3
+                  : j.kind == JointKind::Hinge  ? 5
+                  : j.kind == JointKind::Hinge2 ? 4
+                                                : 6;
     const int a = find(index(j.body1));
     if (j.body2) {
       const int b = find(index(j.body2));

@@ -48,6 +48,8 @@ Scene::Scene() {
   dWorldSetGravity(world_, 0, 0, -9.81);
   space_ = dHashSpaceCreate(nullptr);
   contacts_ = dJointGroupCreate(0);
+  surface_.mode = dContactApprox1;
+  surface_.mu = 0.6;
 }
 
 Scene::~Scene() {
@@ -126,6 +128,18 @@ dJointID Scene::fixed(dBodyID b1, dBodyID b2) {
   return j;
 }
 
+dJointID Scene::hinge2(dBodyID b1, dBodyID b2, const dVector3 anchor, const dVector3 steering,
+                       const dVector3 axle) {
+  dJointID j = dJointCreateHinge2(world_, nullptr);
+  dJointAttach(j, b1, b2);
+  dJointSetHinge2Anchor(j, anchor[0], anchor[1], anchor[2]);
+  dJointSetHinge2Axes(j, steering, axle);
+  JointRecord& r = record(j, JointKind::Hinge2, b1, b2, anchor);
+  dBodyVectorFromWorld(b1, steering[0], steering[1], steering[2], r.axis1);
+  dBodyVectorFromWorld(b2, axle[0], axle[1], axle[2], r.axis2);
+  return j;
+}
+
 void Scene::setProbe(dBodyID b) {
   probe_ = b;
   const dReal* p = dBodyGetPosition(b);
@@ -140,8 +154,7 @@ void Scene::nearCallback(void* data, dGeomID a, dGeomID b) {
   dContact contact[kMaxContactsPerPair];
   const int n = dCollide(a, b, kMaxContactsPerPair, &contact[0].geom, sizeof(dContact));
   for (int i = 0; i < n; ++i) {
-    contact[i].surface.mode = dContactApprox1;
-    contact[i].surface.mu = 0.6;
+    contact[i].surface = self->surface_;
     dJointID j = dJointCreateContact(self->world_, self->contacts_, &contact[i]);
     dJointAttach(j, b1, b2);
     self->deepest_ = std::max(self->deepest_, static_cast<double>(contact[i].geom.depth));
@@ -164,8 +177,20 @@ JointError Scene::jointError() const {
     worldPoint(r.body2, r.anchor2, p2);
     for (int k = 0; k < 3; ++k)
       d[k] = p1[k] - p2[k];
-    const double sep = length(d);
     double angle = 0.0;
+    if (r.kind == JointKind::Hinge2) {
+      // The suspension gives along the steering axis by design: only the
+      // separation across it is error; the axle stays square with it.
+      dVector3 a1, a2;
+      worldVector(r.body1, r.axis1, a1);
+      worldVector(r.body2, r.axis2, a2);
+      const double along = dCalcVectorDot3(d, a1);
+      for (int k = 0; k < 3; ++k)
+        d[k] -= along * a1[k];
+      const double c = std::clamp(static_cast<double>(dCalcVectorDot3(a1, a2)), -1.0, 1.0);
+      angle = std::abs(std::acos(c) - M_PI / 2);
+    }
+    const double sep = length(d);
     if (r.kind == JointKind::Hinge) {
       dVector3 a1, a2;
       worldVector(r.body1, r.axis1, a1);

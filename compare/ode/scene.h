@@ -15,7 +15,7 @@
 
 namespace blockstep::compare {
 
-enum class JointKind { Ball, Hinge, Fixed };
+enum class JointKind { Ball, Hinge, Fixed, Hinge2 };
 
 struct JointRecord {
   dJointID joint = nullptr;
@@ -24,8 +24,8 @@ struct JointRecord {
   dBodyID body2 = nullptr;  // nullptr: the world
   dVector3 anchor1{};       // in body1's frame
   dVector3 anchor2{};       // in body2's frame (world point when body2 is the world)
-  dVector3 axis1{};         // hinge: the free axis in body1's frame
-  dVector3 axis2{};         // hinge: the same axis in body2's frame
+  dVector3 axis1{};         // hinge: the free axis in body1's frame; hinge2: the steering axis
+  dVector3 axis2{};         // hinge: the same axis in body2's frame; hinge2: the axle in body2's
   dQuaternion relative0{};  // body2 in body1's frame at build time (fixed joints)
 };
 
@@ -40,8 +40,10 @@ struct DrawHints {
 };
 
 // What one frame's joints look like: the largest separation of the two
-// anchor points (m) and the largest angular error (rad: a hinge's axes
-// apart, a fixed joint's relative rotation).
+// anchor points (m; a hinge2's across its steering axis, along which its
+// suspension gives by design) and the largest angular error (rad: a
+// hinge's axes apart, a fixed joint's relative rotation, a hinge2's axle
+// off square with its steering axis).
 struct JointError {
   double separation = 0.0;
   double angle = 0.0;
@@ -63,8 +65,8 @@ class Scene {
   const std::vector<JointRecord>& joints() const { return joints_; }
 
   // One frame's collision: contact joints into the scene's group (at most
-  // 8 per geom pair, dContactApprox1, mu 0.6, none between jointed
-  // bodies). Returns the deepest contact (m).
+  // 8 per geom pair, with the scene's contact surface, none between
+  // jointed bodies). Returns the deepest contact (m).
   double collide();
   void clearContacts() { dJointGroupEmpty(contacts_); }
   int contactCount() const { return contactCount_; }
@@ -72,6 +74,10 @@ class Scene {
   double kineticEnergy() const;
   // The body whose drift the scene reports (stacks: the top box), or null.
   dBodyID probe() const { return probe_; }
+  // Every contact's surface: dContactApprox1 with mu 0.6 unless the scene
+  // sets its own (Newton's cradle: elastic and frictionless).
+  const dSurfaceParameters& contactSurface() const { return surface_; }
+  void setContactSurface(const dSurfaceParameters& s) { surface_ = s; }
   const DrawHints& drawHints() const { return draw_; }
   DrawHints& drawHints() { return draw_; }
   const dReal* probeStart() const { return probeStart_; }
@@ -83,6 +89,10 @@ class Scene {
   dJointID ball(dBodyID b1, dBodyID b2, double x, double y, double z);
   dJointID hinge(dBodyID b1, dBodyID b2, const dVector3 anchor, const dVector3 axis);
   dJointID fixed(dBodyID b1, dBodyID b2);
+  // A wheel joint: body2 turns about `axle` (in body2) and steers about
+  // `steering` (in body1); ODE's hinge2.
+  dJointID hinge2(dBodyID b1, dBodyID b2, const dVector3 anchor, const dVector3 steering,
+                  const dVector3 axle);
   void setProbe(dBodyID b);
 
  private:
@@ -97,6 +107,7 @@ class Scene {
   std::vector<JointRecord> joints_;
   dBodyID probe_ = nullptr;
   DrawHints draw_;
+  dSurfaceParameters surface_{};
   dVector3 probeStart_{};
   int contactCount_ = 0;
   double deepest_ = 0.0;

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <fstream>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 namespace blockstep::compare {
 
@@ -25,6 +27,18 @@ int indexOf(const Scene& s, dBodyID b) {
   if (!b) return -1;
   const auto& bodies = s.bodies();
   return static_cast<int>(std::find(bodies.begin(), bodies.end(), b) - bodies.begin());
+}
+
+// The hinge2 parameters a scene file carries, by name.
+const std::vector<std::pair<std::string, int>>& hinge2Params() {
+  static const std::vector<std::pair<std::string, int>> params = {
+      {"lo", dParamLoStop},
+      {"hi", dParamHiStop},
+      {"suspension_erp", dParamSuspensionERP},
+      {"suspension_cfm", dParamSuspensionCFM},
+      {"velocity2", dParamVel2},
+      {"fmax2", dParamFMax2}};
+  return params;
 }
 
 json geomToJson(dGeomID g) {
@@ -253,16 +267,67 @@ nlohmann::json sceneToJson(const Scene& s) {
       case JointKind::Fixed:
         joint["type"] = "fixed";
         break;
+      case JointKind::Hinge2: {
+        joint["type"] = "hinge2";
+        dJointGetHinge2Anchor(r.joint, anchor);
+        dVector3 axle;
+        dJointGetHinge2Axis1(r.joint, axis);
+        dJointGetHinge2Axis2(r.joint, axle);
+        joint["anchor"] = vec3(anchor);
+        joint["steering"] = vec3(axis);
+        joint["axle"] = vec3(axle);
+        for (const auto& [key, param] : hinge2Params()) {
+          const double v = dJointGetHinge2Param(r.joint, param);
+          if (std::isfinite(v)) joint[key] = v;
+        }
+        break;
+      }
     }
     joints.push_back(joint);
   }
   j["joints"] = joints;
   if (s.probe()) j["probe"] = indexOf(s, s.probe());
+  const dSurfaceParameters& surface = s.contactSurface();
+  j["contact"] = {{"mu", std::isfinite(surface.mu) ? surface.mu : -1.0},
+                  {"approx1", (surface.mode & dContactApprox1) != 0}};
+  if (surface.mode & dContactBounce) j["contact"]["bounce"] = {surface.bounce, surface.bounce_vel};
   const DrawHints& draw = s.drawHints();
   if (draw.surfaceColumns > 0)
     j["draw"]["surface"] = {{"columns", draw.surfaceColumns}, {"bodies", draw.surface}};
   if (!draw.strands.empty()) j["draw"]["strands"] = draw.strands;
   return j;
+}
+
+// A unit vector from a non-zero one.
+void unitVector(const Reader& r, const json& j, dVector3 out) {
+  r.vector(j, 3, out);
+  const double len = std::sqrt(dCalcVectorDot3(out, out));
+  if (len < 1e-9) r.fail("must not be zero");
+  for (int k = 0; k < 3; ++k)
+    out[k] /= len;
+}
+
+// The contact surface: {"mu": m (-1: infinite), "approx1": true,
+// "bounce": [restitution, least speed]}.
+void readContact(const Reader& r, const json& j, Scene& s) {
+  if (!j.is_object()) r.fail("must be an object");
+  dSurfaceParameters surface{};
+  const double mu = r.at("mu").number(r.field(j, "mu"));
+  if (mu < 0 && mu != -1.0) r.at("mu").fail("must be >= 0, or -1 for no limit");
+  surface.mu = mu < 0 ? dInfinity : mu;
+  if (j.contains("approx1")) {
+    if (!j.at("approx1").is_boolean()) r.at("approx1").fail("must be true or false");
+    if (j.at("approx1").get<bool>()) surface.mode |= dContactApprox1;
+  }
+  if (j.contains("bounce")) {
+    dReal bounce[2];
+    r.at("bounce").vector(j.at("bounce"), 2, bounce);
+    if (bounce[0] < 0 || bounce[0] > 1) r.at("bounce").fail("restitution must be in [0, 1]");
+    surface.mode |= dContactBounce;
+    surface.bounce = bounce[0];
+    surface.bounce_vel = bounce[1];
+  }
+  s.setContactSurface(surface);
 }
 
 // A list of body indices, each in 0..count-1.
@@ -403,12 +468,25 @@ std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
         dJointSetHingeParam(h, dParamHiStop, hi);
       } else if (type == "fixed") {
         s->fixed(b1, b2);
+      } else if (type == "hinge2") {
+        if (!b2) r.at("bodies").fail("a hinge2 joins two bodies");
+        dVector3 anchor, steering, axle;
+        r.at("anchor").vector(r.field(joint, "anchor"), 3, anchor);
+        unitVector(r.at("steering"), r.field(joint, "steering"), steering);
+        unitVector(r.at("axle"), r.field(joint, "axle"), axle);
+        if (std::abs(dCalcVectorDot3(steering, axle)) > 0.999)
+          r.at("axle").fail("must not be parallel to the steering axis");
+        dJointID h = s->hinge2(b1, b2, anchor, steering, axle);
+        for (const auto& [key, param] : hinge2Params()) {
+          if (joint.contains(key)) dJointSetHinge2Param(h, param, r.at(key).number(joint.at(key)));
+        }
       } else {
-        r.at("type").fail("'" + type + "' is not ball, hinge or fixed");
+        r.at("type").fail("'" + type + "' is not ball, hinge, fixed or hinge2");
       }
     }
   }
   if (j.contains("probe")) s->setProbe(body(root.at("probe"), j.at("probe"), false));
+  if (j.contains("contact")) readContact(root.at("contact"), j.at("contact"), *s);
   if (j.contains("draw")) readDrawHints(root.at("draw"), j.at("draw"), count, s->drawHints());
   return s;
 }

@@ -17,7 +17,13 @@
 //   "joints": [ { "type": "ball", "bodies": [i, j], "anchor": [..] },   (j = -1: the world)
 //               { "type": "hinge", "bodies": [i, j], "anchor": [..], "axis": [..],
 //                 "lo": -0.3, "hi": 0.8 },                             (stops optional)
-//               { "type": "fixed", "bodies": [i, j] } ],               (fixed where they are)
+//               { "type": "fixed", "bodies": [i, j] },                 (fixed where they are)
+//               { "type": "hinge2", "bodies": [i, j], "anchor": [..],      (a wheel: j turns about
+//                 "steering": [..], "axle": [..], "lo": 0, "hi": 0,          the axle, steers about
+//                 "suspension_erp": .4, "suspension_cfm": 1e-3,             the steering axis;
+//                 "velocity2": 10, "fmax2": 30 } ],                          parameters optional)
+//   "contact": { "mu": 0.6, "approx1": true, "bounce": [1, 0] },        (optional: every contact's
+//                                                                         surface; mu -1: no limit)
 //   "probe": k,                                                         (optional: drift of body k)
 //   "draw": { "surface": { "columns": n, "bodies": [i, ...] },         (optional: how the report's
 //             "strands": [ [i, j, ...], ... ] }                           replay draws the bodies)

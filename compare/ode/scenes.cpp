@@ -83,35 +83,176 @@ void buildPyramid(Scene& s) {
   s.setProbe(top);
 }
 
+// Where a ragdoll stands: turned `yaw` about z, then moved by (x, y, z).
+struct Placement {
+  double yaw = 0.0, x = 0.0, y = 0.0, z = 0.0;
+  void point(double px, double py, double pz, dVector3 out) const {
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    out[0] = c * px - s * py + x;
+    out[1] = s * px + c * py + y;
+    out[2] = pz + z;
+  }
+  void direction(double px, double py, double pz, dVector3 out) const {
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    out[0] = c * px - s * py;
+    out[1] = s * px + c * py;
+    out[2] = pz;
+  }
+};
+
 // Pelvis, torso, head and two thighs: hinges with stops at the waist and
-// hips, a ball at the neck; thrown at (0.5, 0.2, 0) m/s, the torso turning.
-void buildRagdoll(Scene& s) {
-  groundPlane(s);
+// hips, a ball at the neck. Returns the torso.
+dBodyID buildRagdollAt(Scene& s, const Placement& at) {
+  dMatrix3 turn;
+  dRFromAxisAndAngle(turn, 0, 0, 1, at.yaw);
+  auto part = [&](dBodyID b) {
+    const dReal* p = dBodyGetPosition(b);
+    dVector3 q;
+    at.point(p[0], p[1], p[2], q);
+    dBodySetPosition(b, q[0], q[1], q[2]);
+    dBodySetRotation(b, turn);
+    return b;
+  };
   const double pelvisZ = 1.2;
-  dBodyID pelvis = box(s, 10.0, 0.30, 0.20, 0.20, 0.0, 0.0, pelvisZ);
+  dBodyID pelvis = part(box(s, 10.0, 0.30, 0.20, 0.20, 0.0, 0.0, pelvisZ));
   const double torsoZ = pelvisZ + 0.10 + 0.20;
-  dBodyID torso = box(s, 15.0, 0.34, 0.20, 0.40, 0.0, 0.0, torsoZ);
+  dBodyID torso = part(box(s, 15.0, 0.34, 0.20, 0.40, 0.0, 0.0, torsoZ));
   const double neckZ = torsoZ + 0.20;
-  dBodyID head = capsule(s, 5.0, 0.08, 0.14, 0.0, 0.0, neckZ + 0.08 + 0.07);
+  dBodyID head = part(capsule(s, 5.0, 0.08, 0.14, 0.0, 0.0, neckZ + 0.08 + 0.07));
   const double hipZ = pelvisZ - 0.10;
   const double thighZ = hipZ - 0.06 - 0.19;
-  dBodyID left = capsule(s, 7.0, 0.06, 0.38, -0.08, 0.0, thighZ);
-  dBodyID right = capsule(s, 7.0, 0.06, 0.38, 0.08, 0.0, thighZ);
-  const dVector3 xAxis = {1, 0, 0};
-  const dVector3 waist = {0, 0, pelvisZ + 0.10};
+  dBodyID left = part(capsule(s, 7.0, 0.06, 0.38, -0.08, 0.0, thighZ));
+  dBodyID right = part(capsule(s, 7.0, 0.06, 0.38, 0.08, 0.0, thighZ));
+  dVector3 xAxis, waist, neck;
+  at.direction(1, 0, 0, xAxis);
+  at.point(0, 0, pelvisZ + 0.10, waist);
   dJointID w = s.hinge(pelvis, torso, waist, xAxis);
   dJointSetHingeParam(w, dParamLoStop, -0.3);
   dJointSetHingeParam(w, dParamHiStop, 0.8);
-  s.ball(torso, head, 0.0, 0.0, neckZ);
+  at.point(0.0, 0.0, neckZ, neck);
+  s.ball(torso, head, neck[0], neck[1], neck[2]);
   for (auto [thigh, x] : {std::pair{left, -0.08}, std::pair{right, 0.08}}) {
-    const dVector3 hip = {x, 0.0, hipZ};
+    dVector3 hip;
+    at.point(x, 0.0, hipZ, hip);
     dJointID h = s.hinge(pelvis, thigh, hip, xAxis);
     dJointSetHingeParam(h, dParamLoStop, -1.2);
     dJointSetHingeParam(h, dParamHiStop, 0.5);
   }
+  return torso;
+}
+
+// One ragdoll thrown at (0.5, 0.2, 0) m/s, the torso turning.
+void buildRagdoll(Scene& s) {
+  groundPlane(s);
+  dBodyID torso = buildRagdollAt(s, Placement{});
   for (dBodyID b : s.bodies())
     dBodySetLinearVel(b, 0.5, 0.2, 0.0);
   dBodySetAngularVel(torso, 1.0, 2.0, 0.0);
+}
+
+// Eight ragdolls dropped upright in pairs side by side, each pair 1.5 m
+// above the last (a ragdoll stands 1.3 m) and turned a quarter from it,
+// onto the plane and one another: bodies of different ragdolls meet and
+// hinge limits hold under load.
+void buildRagdollPile(Scene& s) {
+  groundPlane(s);
+  for (int k = 0; k < 8; ++k) {
+    const int layer = k / 2;
+    const double side = k % 2 == 0 ? -0.25 : 0.25;
+    Placement at;
+    at.yaw = layer * M_PI / 2 + 0.1 * (k % 2);
+    at.x = layer % 2 == 0 ? side : 0.05 * layer;
+    at.y = layer % 2 == 0 ? 0.05 * layer : side;
+    at.z = 0.1 + 1.5 * layer;
+    buildRagdollAt(s, at);
+  }
+}
+
+// Newton's cradle: five 1 kg balls of 0.05 m radius, each hanging 0.5 m
+// below a hinge to the world (axis y), touching in a row along x; the
+// first is raised 30 degrees and let go. Contacts are elastic (bounce 1)
+// and frictionless, as a cradle's steel is near enough: the last ball
+// should swing out as high as the first fell, the three between still.
+void buildNewtonsCradle(Scene& s) {
+  constexpr int kBalls = 5;
+  constexpr double kRadius = 0.05, kLength = 0.5, kPivotZ = 1.0, kRaised = M_PI / 6;
+  for (int i = 0; i < kBalls; ++i) {
+    const double px = (i - 0.5 * (kBalls - 1)) * 2 * kRadius;
+    const double swing = i == 0 ? -kRaised : 0.0;
+    dMass m;
+    dMassSetSphereTotal(&m, 1.0, kRadius);
+    dBodyID b =
+        s.addBody(m, px + kLength * std::sin(swing), 0.0, kPivotZ - kLength * std::cos(swing));
+    s.addGeom(dCreateSphere(s.space(), kRadius), b);
+    const dVector3 pivot = {px, 0.0, kPivotZ}, axis = {0, 1, 0};
+    s.hinge(b, nullptr, pivot, axis);
+  }
+  dSurfaceParameters surface{};
+  surface.mode = dContactBounce;
+  surface.mu = 0.0;
+  surface.bounce = 1.0;
+  surface.bounce_vel = 0.0;
+  s.setContactSurface(surface);
+}
+
+// A car on four hinge2 wheels (ODE's demo_buggy, made life-size): a 2 x 1
+// x 0.3 m chassis of 150 kg, wheels of 0.3 m radius and 10 kg on sprung
+// suspensions (ERP 0.4, CFM 1e-3), steering locked, every wheel driven to
+// 10 rad/s (3 m/s) with up to 40 N m, over four static bumps 8 cm high
+// and into a pile of six loose 0.25 m boxes.
+void buildCar(Scene& s) {
+  groundPlane(s);
+  constexpr double kWheelR = 0.3, kChassisZ = kWheelR + 0.25;
+  dBodyID chassis = box(s, 150.0, 2.0, 1.0, 0.3, 0.0, 0.0, kChassisZ);
+  for (const auto& [x, y] : {std::pair{0.7, 0.6}, {0.7, -0.6}, {-0.7, 0.6}, {-0.7, -0.6}}) {
+    dMass m;
+    dMassSetSphereTotal(&m, 10.0, kWheelR);
+    dBodyID wheel = s.addBody(m, x, y, kWheelR);
+    s.addGeom(dCreateSphere(s.space(), kWheelR), wheel);
+    const dVector3 anchor = {x, y, kWheelR}, steering = {0, 0, 1}, axle = {0, 1, 0};
+    dJointID j = s.hinge2(chassis, wheel, anchor, steering, axle);
+    dJointSetHinge2Param(j, dParamLoStop, 0.0);
+    dJointSetHinge2Param(j, dParamHiStop, 0.0);
+    dJointSetHinge2Param(j, dParamSuspensionERP, 0.4);
+    dJointSetHinge2Param(j, dParamSuspensionCFM, 1e-3);
+    dJointSetHinge2Param(j, dParamVel2, 10.0);
+    dJointSetHinge2Param(j, dParamFMax2, 40.0);
+  }
+  for (int k = 0; k < 4; ++k) {
+    dGeomID bump = dCreateBox(s.space(), 0.3, 3.0, 0.08);
+    dGeomSetPosition(bump, 2.0 + 1.5 * k, 0.0, 0.04);
+  }
+  for (int k = 0; k < 6; ++k) {
+    const int row = k < 3 ? 0 : 1;
+    box(s, 2.0, 0.25, 0.25, 0.25, 9.0 + 0.3 * row, -0.3 + 0.3 * (k % 3), 0.125 + 0.25 * row);
+  }
+  s.setProbe(chassis);
+}
+
+// A plank bridge: twenty 1 kg planks (0.3 x 1.2 x 0.05 m) hinged edge to
+// edge across a 6 m gap, each end hinged to the world, with a 100 kg
+// crate (0.5 m) dropped from 0.3 m onto its middle: a 100:1 load hanging
+// on light hinges. Planks do not collide with one another.
+void buildBridge(Scene& s) {
+  constexpr int kPlanks = 20;
+  constexpr double kLength = 0.3, kZ = 2.0;
+  const dVector3 axis = {0, 1, 0};
+  dBodyID previous = nullptr;
+  const double x0 = -0.5 * kPlanks * kLength;
+  for (int i = 0; i < kPlanks; ++i) {
+    dBodyID plank = box(s, 1.0, kLength, 1.2, 0.05, x0 + (i + 0.5) * kLength, 0.0, kZ);
+    dGeomID g = dBodyGetFirstGeom(plank);
+    dGeomSetCategoryBits(g, 2);
+    dGeomSetCollideBits(g, 1);
+    const dVector3 edge = {x0 + i * kLength, 0.0, kZ};
+    s.hinge(plank, previous, edge, axis);
+    previous = plank;
+  }
+  const dVector3 end = {x0 + kPlanks * kLength, 0.0, kZ};
+  s.hinge(previous, nullptr, end, axis);
+  dBodyID crate = box(s, 100.0, 0.5, 0.5, 0.5, 0.0, 0.0, kZ + 0.025 + 0.25 + 0.3);
+  dGeomSetCategoryBits(dBodyGetFirstGeom(crate), 1);
+  dGeomSetCollideBits(dBodyGetFirstGeom(crate), ~0u);
 }
 
 // N x N boxes of 0.05 m and 0.01 kg, 0.05 m apart at z = 1.5, ball joints
@@ -303,6 +444,18 @@ const std::map<std::string, SceneKind>& builders() {
       {"hair",
        {[](Scene& s, int) { buildHair(s); },
         "64 strands of 16 capsules on ball joints standing out of a head sphere"}},
+      {"ragdoll_pile",
+       {[](Scene& s, int) { buildRagdollPile(s); },
+        "eight ragdolls dropped in turned pairs onto the plane and one another"}},
+      {"cradle",
+       {[](Scene& s, int) { buildNewtonsCradle(s); },
+        "Newton's cradle: five balls on hinges, elastic frictionless contacts, one raised"}},
+      {"car",
+       {[](Scene& s, int) { buildCar(s); },
+        "a 150 kg car on four driven hinge2 wheels over bumps into loose boxes"}},
+      {"bridge",
+       {[](Scene& s, int) { buildBridge(s); },
+        "20 one-kilogram planks hinged across a gap, a 100 kg crate dropped on the middle"}},
       {"star",
        {[](Scene& s, int) { buildStar(s); },
         "ODE's demo_I: a 0.1 kg anchor carrying ten heavier particles on ball joints, spinning"}},

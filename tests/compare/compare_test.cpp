@@ -56,7 +56,7 @@ TEST(CompareScenes, UnknownScenesAndSizesAreRefused) {
     makeScene("clothes");
     FAIL() << "an unknown scene was built";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("accepted: chain"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("accepted: bridge, car, chain"), std::string::npos) << e.what();
   }
   EXPECT_THROW(makeScene("cloth", -1), std::invalid_argument);
 }
@@ -370,7 +370,8 @@ TEST(CompareRuns, SlowDivergenceIsCaughtAndATautChainIsNot) {
 TEST(CompareSceneFiles, WrittenAndReadBackStepAlike) {
   RunOptions o;
   o.frames = 30;
-  for (const char* name : {"chain", "ragdoll", "stack", "cloth", "softcube", "hair"}) {
+  for (const char* name : {"chain", "ragdoll", "stack", "cloth", "softcube", "hair", "cradle",
+                           "car", "bridge", "ragdoll_pile"}) {
     const auto original = makeScene(name, 6);
     const auto copy = sceneFromJson(sceneToJson(*original));
     EXPECT_EQ(copy->name(), original->name());
@@ -428,7 +429,7 @@ TEST(CompareSceneFiles, BadFieldsAreNamed) {
        },
        "joints[0].axis: must not be zero"},
       {[](nlohmann::json& j) { j["joints"][1]["type"] = "slider"; },
-       "joints[1].type: 'slider' is not ball, hinge or fixed"},
+       "joints[1].type: 'slider' is not ball, hinge, fixed or hinge2"},
       {[](nlohmann::json& j) {
          j["gravity"] = {0, 0};
        },
