@@ -14,6 +14,7 @@
 #include "adapters/ode/world_bridge.h"
 
 #include "blockstep/blockstep_ode.h"
+#include "plugin/ab_mode.h"
 #include "plugin/plugin_state.h"
 
 namespace blockstep::plugin {
@@ -184,6 +185,11 @@ __attribute__((constructor)) void announce() {
   const char* solver = c.defaults.followQuickStepIterations ? "sub-steps = quickstep iterations / 2"
                                                             : "solver from BLOCKSTEP_* settings";
   std::fprintf(stderr, "blockstep: active, replacing %s (%s)\n", replaceName(c.replace), solver);
+  if (abMode())
+    std::fprintf(stderr,
+                 "blockstep: A/B mode: each step taken by quickstep and blockstep from the same "
+                 "state, the program's own kept, rows written to %s\n",
+                 std::getenv("BLOCKSTEP_AB"));
 }
 
 WorldBridge& bridgeFor(dWorldID w) {
@@ -347,6 +353,7 @@ extern "C" {
 
 int dWorldBlockStep(dWorldID w, dReal stepsize) {
   BLOCKSTEP_REAL(dWorldQuickStep);
+  if (abMode()) return abStep(w, stepsize, AbChoice::Blockstep, ode::OdeStepper::QuickStep);
   return blockStep(w, stepsize, real_dWorldQuickStep);
 }
 

@@ -1,12 +1,13 @@
 // ODE entry points the plugin defines in front of ODE's: each forwards to
 // the real function (dlsym RTLD_NEXT) and tells the registry what it
 // made or destroyed; the steppers go to blockstep when BLOCKSTEP_REPLACE
-// asks. Input ODE would abort on or silently accept into NaN (a zero or
-// non-finite axis, a body jointed to itself, a non-finite or non-positive
-// mass) is refused here with a message, and the world stays as it was.
+// asks, or to both blockstep and quickstep under BLOCKSTEP_AB (ab_mode.h). Input ODE would abort on
+// or silently accept into NaN (a zero or non-finite axis, a body jointed to itself, a non-finite or
+// non-positive mass) is refused here with a message, and the world stays as it was.
 #include <cmath>
 
 #include "adapters/ode/registry.h"
+#include "plugin/ab_mode.h"
 #include "plugin/plugin_state.h"
 
 namespace blockstep::plugin {
@@ -72,12 +73,18 @@ extern "C" {
 
 int dWorldQuickStep(dWorldID w, dReal stepsize) {
   BLOCKSTEP_REAL(dWorldQuickStep);
+  if (abMode())
+    return abStep(w, stepsize, replace().quickStep ? AbChoice::Blockstep : AbChoice::QuickStep,
+                  blockstep::ode::OdeStepper::QuickStep);
   if (replace().quickStep) return blockStep(w, stepsize, real_dWorldQuickStep);
   return real_dWorldQuickStep(w, stepsize);
 }
 
 int dWorldStep(dWorldID w, dReal stepsize) {
   BLOCKSTEP_REAL(dWorldStep);
+  if (abMode())
+    return abStep(w, stepsize, replace().step ? AbChoice::Blockstep : AbChoice::Step,
+                  blockstep::ode::OdeStepper::Step);
   if (replace().step)
     return blockStep(w, stepsize, real_dWorldStep, blockstep::ode::OdeStepper::Step);
   return real_dWorldStep(w, stepsize);

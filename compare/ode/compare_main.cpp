@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "blockstep/blockstep_ode.h"
+#include "compare/ode/ab_file.h"
 #include "compare/ode/convergence.h"
 #include "compare/ode/runner.h"
 #include "compare/ode/scene_file.h"
@@ -310,6 +311,50 @@ int runConvergence(const std::vector<std::string>& scenes, int size,
   return 0;
 }
 
+// --ab: a program's A/B rows (BLOCKSTEP_AB) as a quickstep run and a
+// blockstep run per world, printed, and with --out written as the runs
+// are (a CSV each and summary.json) for the report.
+int runAb(const std::string& file, const std::string& out) {
+  const std::string name = std::filesystem::path(file).stem().string();
+  const std::vector<AbWorld> worlds = readAbFile(file, name);
+  nlohmann::json all = nlohmann::json::array();
+  std::printf("%-22s %-34s %7s %10s %10s %12s %12s  %s\n", "world", "stepper", "steps", "solve ms",
+              "x quick", "max sep mm", "rms sep mm", "note");
+  for (const AbWorld& w : worlds) {
+    const double quickMs = w.quickstep.medianSolveMs;
+    for (const RunResult* r : {&w.quickstep, &w.blockstep}) {
+      const bool block = r == &w.blockstep;
+      std::printf("%-22s %-34s %7d %10.4f %10.2f %12.4f %12.4f  %s\n", r->scene.c_str(),
+                  r->stepper.c_str(), r->framesRun, r->medianSolveMs,
+                  quickMs > 0 ? r->medianSolveMs / quickMs : 0.0, r->maxSeparation * 1e3,
+                  r->rmsSeparation * 1e3,
+                  (std::string(block == (w.kept == "blockstep") ? "kept by the program" : "") +
+                   (w.kept == "dWorldStep" && block ? "(the program kept dWorldStep's)" : ""))
+                      .c_str());
+      nlohmann::json j = summary(*r, quickMs);
+      j["kind"] = block ? "blockstep" : "quickstep";
+      j["iterations"] = 0;
+      j["substeps"] = 1;
+      j["frame_dt"] = w.dt;
+      j["error_m"] = r->maxSeparation;
+      j["error_is"] = "max joint separation";
+      j["ab_kept"] = w.kept;
+      j["ab_max_speed_difference_m_s"] = w.maxSpeedDifference;
+      j["csv_file"] = runPath("", r->scene, block ? "blockstep" : "quickstep", "", ".csv").string();
+      all.push_back(j);
+      if (!out.empty())
+        writeCsv(runPath(out, r->scene, block ? "blockstep" : "quickstep", "", ".csv"), *r);
+    }
+    std::printf("%-22s the two steps' velocities ended up to %.4g m/s apart\n",
+                w.quickstep.scene.c_str(), w.maxSpeedDifference);
+  }
+  if (!out.empty()) {
+    std::filesystem::create_directories(out);
+    std::ofstream(std::filesystem::path(out) / "summary.json") << all.dump(2) << '\n';
+  }
+  return 0;
+}
+
 // --help's list of scenes and steppers, a line each.
 std::string helpFooter() {
   std::string text = "\nScenes (--scene; default: all but star):\n";
@@ -408,6 +453,13 @@ int main(int argc, char** argv) {
   app.add_option("--max-sweeps", convergenceOptions.maxSweeps,
                  "the convergence study's largest sweep count (default 50)")
       ->check(CLI::Range(1, 10000));
+  std::string abFile;
+  app.add_option("--ab", abFile,
+                 "in place of the runs: the rows an ODE program wrote under LD_PRELOAD with "
+                 "BLOCKSTEP_AB=FILE (both steppers every step), as a run of each per world");
+  bool report = false;
+  app.add_flag("--report", report,
+               "with --out: write the HTML report there too (compare/report/report.py)");
   int jobs = 1;
   app.add_option("--jobs", jobs,
                  "runs at a time, each in a process of its own (times then share the cores)")
@@ -450,12 +502,29 @@ int main(int argc, char** argv) {
     std::filesystem::create_directories(out);
     options.poseStride = replayStride;
   }
+  // The report, when asked for, once the results are written.
+  auto writeReport = [&](int code) {
+    if (code != 0 || !report || out.empty()) return code;
+    const std::string command = "/usr/bin/python3 '" BLOCKSTEP_REPORT_SCRIPT "' '" + out + "'";
+    return std::system(command.c_str()) == 0 ? 0 : 4;
+  };
+  if (!abFile.empty()) {
+    int code = 0;
+    try {
+      code = runAb(abFile, out);
+    } catch (const std::invalid_argument& e) {
+      std::fprintf(stderr, "blockstep-compare: %s\n", e.what());
+      code = 2;
+    }
+    dCloseODE();
+    return writeReport(code);
+  }
   if (residualsFrame >= 0) {
     convergenceOptions.atFrame = residualsFrame;
     convergenceOptions.dt = options.dt;
     const int code = runConvergence(scenes, size, convergenceOptions, out);
     dCloseODE();
-    return code;
+    return writeReport(code);
   }
 
   nlohmann::json all = nlohmann::json::array();
@@ -547,5 +616,5 @@ int main(int argc, char** argv) {
     json << all.dump(2) << '\n';
   }
   dCloseODE();
-  return 0;
+  return writeReport(0);
 }

@@ -359,10 +359,20 @@ Stepper parseStepper(const std::string& text) {
 }
 
 void summarize(RunResult& r, const Scene& scene, const RunOptions& options) {
+  summarizeFrames(r, options.dt);
+  if (dBodyID p = scene.probe()) {
+    const dReal* now = dBodyGetPosition(p);
+    const dReal* s = scene.probeStart();
+    r.drift = std::sqrt((now[0] - s[0]) * (now[0] - s[0]) + (now[1] - s[1]) * (now[1] - s[1]) +
+                        (now[2] - s[2]) * (now[2] - s[2]));
+  }
+}
+
+void summarizeFrames(RunResult& r, double dt) {
   std::vector<double> solve, collide;
   double sumSq = 0.0;
   long samples = 0;
-  const int lastSecond = std::max(1, static_cast<int>(std::lround(1.0 / options.dt)));
+  const int lastSecond = std::max(1, static_cast<int>(std::lround(1.0 / dt)));
   double lastPen = 0.0;
   int lastCount = 0;
   for (std::size_t f = 0; f < r.frames.size(); ++f) {
@@ -386,12 +396,6 @@ void summarize(RunResult& r, const Scene& scene, const RunOptions& options) {
   r.medianCollideMs = median(collide);
   r.rmsSeparation = samples > 0 ? std::sqrt(sumSq / samples) : 0.0;
   r.lastSecondPenetration = lastCount > 0 ? lastPen / lastCount : 0.0;
-  if (dBodyID p = scene.probe()) {
-    const dReal* now = dBodyGetPosition(p);
-    const dReal* s = scene.probeStart();
-    r.drift = std::sqrt((now[0] - s[0]) * (now[0] - s[0]) + (now[1] - s[1]) * (now[1] - s[1]) +
-                        (now[2] - s[2]) * (now[2] - s[2]));
-  }
 }
 
 void recordPoses(const Scene& scene, int done, const RunOptions& options, RunResult& r) {

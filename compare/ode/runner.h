@@ -133,5 +133,7 @@ int largestIslandRows(const Scene& scene);
 
 // A run's summary (medians, maxima, drift) from its frames.
 void summarize(RunResult& r, const Scene& scene, const RunOptions& options);
+// The same from the frames alone (frames of dt seconds), drift left as it is.
+void summarizeFrames(RunResult& r, double dt);
 
 }  // namespace blockstep::compare

@@ -219,7 +219,8 @@ img { max-width: 100%; border: 1px solid #ddd; margin: 4px 0; }
 
 
 def write_report(out_dir):
-    scenes = plots.read_summary(out_dir)
+    has_runs = os.path.exists(os.path.join(out_dir, "summary.json"))
+    scenes = plots.read_summary(out_dir) if has_runs else {}
     pngs = plots.plot_all(out_dir)
     index = []
     for scene, runs in scenes.items():

@@ -26,7 +26,7 @@ Output run(const std::string& variables) {
   for (const char* name :
        {"BLOCKSTEP_REPLACE", "BLOCKSTEP_QUIET", "BLOCKSTEP_SOLVER", "BLOCKSTEP_SUBSTEPS",
         "BLOCKSTEP_ITERATIONS", "BLOCKSTEP_RELAX", "BLOCKSTEP_WARM", "BLOCKSTEP_TOLERANCE",
-        "BLOCKSTEP_TIME_BUDGET", "BLOCKSTEP_MODE"}) {
+        "BLOCKSTEP_TIME_BUDGET", "BLOCKSTEP_MODE", "BLOCKSTEP_AB"}) {
     command += std::string(" -u ") + name;
   }
   command += " " + variables + sanitizer + " " PLAIN_ODE_PROGRAM " 2>&1";
@@ -98,6 +98,63 @@ TEST(Preload, MalformedVariablesAreReportedAndIgnored) {
   EXPECT_NE(out.text.find("replacing dWorldQuickStep and dWorldStep"), std::string::npos);
   ASSERT_EQ(out.values.count("chain_gap_mm"), 1u) << out.text;
   EXPECT_LT(out.values.at("chain_gap_mm"), 100.0);
+}
+
+// A/B mode: every step taken by quickstep and blockstep from the same
+// state, the program's own stepper's result kept, a row per step.
+TEST(Preload, AbModeStepsBothAndKeepsTheProgramsOwn) {
+  const std::string file = ::testing::TempDir() + "blockstep_ab_test.csv";
+  const Output blockstep = run("LD_PRELOAD=" BLOCKSTEP_PLUGIN);
+  const Output ab = run("BLOCKSTEP_AB=" + file + " LD_PRELOAD=" BLOCKSTEP_PLUGIN);
+  EXPECT_NE(ab.text.find("A/B mode"), std::string::npos) << ab.text;
+  ASSERT_EQ(ab.values.size(), 4u) << ab.text;
+  // blockstep kept: its results, from a state put back to rounding (the
+  // stack's contacts move a few micrometres with it).
+  EXPECT_NEAR(ab.values.at("chain_gap_mm"), blockstep.values.at("chain_gap_mm"), 0.01);
+  EXPECT_NEAR(ab.values.at("stack_sink_mm"), blockstep.values.at("stack_sink_mm"), 0.01);
+  EXPECT_NEAR(ab.values.at("stack_drift_mm"), blockstep.values.at("stack_drift_mm"), 0.01);
+  EXPECT_NEAR(ab.values.at("pendulum_energy"), blockstep.values.at("pendulum_energy"), 1e-3);
+
+  // Quickstep kept (nothing replaced): quickstep's stable parts as they
+  // are without A/B mode (its chain flies apart: chaos, left out).
+  const Output plain = run("");
+  const Output quick =
+      run("BLOCKSTEP_REPLACE=none BLOCKSTEP_AB=" + file + " LD_PRELOAD=" BLOCKSTEP_PLUGIN);
+  ASSERT_EQ(quick.values.size(), 4u) << quick.text;
+  EXPECT_NEAR(quick.values.at("stack_sink_mm"), plain.values.at("stack_sink_mm"), 0.01);
+  EXPECT_NEAR(quick.values.at("pendulum_energy"), plain.values.at("pendulum_energy"), 1e-3);
+  EXPECT_GT(quick.values.at("chain_gap_mm"), 1000.0);  // quickstep's, not blockstep's
+
+  // One row per step (180) after the header, both steppers measured:
+  // from the same state each step, blockstep's chain joints open less
+  // while quickstep's chain holds together (its first 20 steps; after,
+  // one step of either from a chain metres apart tells little).
+  FILE* f = std::fopen(file.c_str(), "r");
+  ASSERT_NE(f, nullptr);
+  char line[1024];
+  ASSERT_NE(std::fgets(line, sizeof line, f), nullptr);
+  EXPECT_EQ(std::string(line).rfind("world,step,h,kept,quickstep_ms", 0), 0u);
+  int rows = 0, blockstepTighter = 0;
+  while (std::fgets(line, sizeof line, f)) {
+    int world = 0, step = 0;
+    double h = 0, quickMs = 0, quickSep = 0, blockMs = 0, blockSep = 0;
+    char kept[32] = {};
+    ASSERT_EQ(std::sscanf(line, "%d,%d,%lf,%31[^,],%lf,%lf,%*f,%*f,%lf,%lf", &world, &step, &h,
+                          kept, &quickMs, &quickSep, &blockMs, &blockSep),
+              8)
+        << line;
+    EXPECT_EQ(world, 1);
+    EXPECT_EQ(step, rows);
+    EXPECT_STREQ(kept, "quickstep");
+    EXPECT_GT(quickMs, 0.0);
+    EXPECT_GT(blockMs, 0.0);
+    if (step < 20) blockstepTighter += blockSep < 0.5 * quickSep;
+    ++rows;
+  }
+  std::fclose(f);
+  EXPECT_EQ(rows, 180);
+  EXPECT_EQ(blockstepTighter, 20);
+  std::remove(file.c_str());
 }
 
 }  // namespace
