@@ -215,7 +215,7 @@ void buildCar(Scene& s) {
     dJointSetHinge2Param(j, dParamHiStop, 0.0);
     dJointSetHinge2Param(j, dParamSuspensionERP, 0.4);
     dJointSetHinge2Param(j, dParamSuspensionCFM, 1e-3);
-    dJointSetHinge2Param(j, dParamVel2, 10.0);
+    dJointSetHinge2Param(j, dParamVel2, -10.0);  // with this axle, rolls the car towards +x
     dJointSetHinge2Param(j, dParamFMax2, 40.0);
   }
   for (int k = 0; k < 4; ++k) {

@@ -444,7 +444,14 @@
       next();
     }
 
-    if (index.length) showScene(index[0].scene, () => {
+    // report.html#scene=hair&frame=100 opens on that scene and frame.
+    const wanted = new URLSearchParams(location.hash.slice(1));
+    const first = index.find((e) => e.scene === wanted.get("scene")) || index[0];
+    if (index.length) showScene(first.scene, () => {
+      if (wanted.has("frame")) {
+        state.frame = Math.max(0, Math.min(frames() - 1, Number(wanted.get("frame")) || 0));
+        render();
+      }
       if (/[?&]selftest/.test(location.search)) selftest();
     });
     else if (/[?&]selftest/.test(location.search)) {
