@@ -27,12 +27,6 @@ struct SavedBody {
   bool enabled = true;
 };
 
-// Put back through ODE's setters: ODE normalizes the orientation it is
-// given, which can move the last bits of a quaternion it had normalized
-// itself, so the kept step starts from the saved state to rounding. A
-// stable scene agrees with a run without A/B mode to rounding; a chaotic
-// one (a chain flying apart under quickstep) drifts from it in time.
-
 // What one stepper's step gave.
 struct Outcome {
   double seconds = 0.0;
@@ -101,6 +95,11 @@ void save(const std::vector<dBodyID>& bodies, std::vector<SavedBody>& saved) {
   }
 }
 
+// Put back through ODE's setters: ODE normalizes the orientation it is
+// given, which can move the last bits of a quaternion it had normalized
+// itself, so the kept step starts from the saved state to rounding. A
+// stable scene agrees with a run without A/B mode to rounding; a chaotic
+// one (a chain flying apart under quickstep) drifts from it in time.
 void restore(const std::vector<SavedBody>& saved) {
   for (const SavedBody& s : saved) {
     s.state.putBack();
@@ -160,20 +159,8 @@ void measure(const std::vector<dBodyID>& bodies, const std::vector<dJointID>& jo
   }
   out.rmsSeparation = measuredJoints ? std::sqrt(sumSq / measuredJoints) : 0.0;
   out.kineticEnergy = 0.0;
-  for (dBodyID b : bodies) {
-    dMass m;
-    dBodyGetMass(b, &m);
-    const dReal* v = dBodyGetLinearVel(b);
-    dVector3 w;
-    const dReal* ww = dBodyGetAngularVel(b);
-    dBodyVectorFromWorld(b, ww[0], ww[1], ww[2], w);
-    double rotational = 0.0;
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 3; ++k)
-        rotational += w[i] * m.I[i * 4 + k] * w[k];
-    out.kineticEnergy +=
-        0.5 * m.mass * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + 0.5 * rotational;
-  }
+  for (dBodyID b : bodies)
+    out.kineticEnergy += ode::kineticEnergy(b);
 }
 
 }  // namespace

@@ -328,9 +328,9 @@ int runAb(const std::string& file, const std::string& out) {
                   r->stepper.c_str(), r->framesRun, r->medianSolveMs,
                   quickMs > 0 ? r->medianSolveMs / quickMs : 0.0, r->maxSeparation * 1e3,
                   r->rmsSeparation * 1e3,
-                  (std::string(block == (w.kept == "blockstep") ? "kept by the program" : "") +
-                   (w.kept == "dWorldStep" && block ? "(the program kept dWorldStep's)" : ""))
-                      .c_str());
+                  w.kept == (block ? "blockstep" : "quickstep")
+                      ? "kept by the program"
+                      : (w.kept == "dWorldStep" && block ? "(the program kept dWorldStep's)" : ""));
       nlohmann::json j = summary(*r, quickMs);
       j["kind"] = block ? "blockstep" : "quickstep";
       j["iterations"] = 0;

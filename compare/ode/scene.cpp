@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "adapters/ode/body_state.h"
+
 namespace blockstep::compare {
 
 namespace {
@@ -219,19 +221,8 @@ JointError Scene::jointError() const {
 
 double Scene::kineticEnergy() const {
   double energy = 0.0;
-  for (dBodyID b : bodies_) {
-    dMass m;
-    dBodyGetMass(b, &m);
-    const dReal* v = dBodyGetLinearVel(b);
-    dVector3 w;  // body frame
-    const dReal* ww = dBodyGetAngularVel(b);
-    dBodyVectorFromWorld(b, ww[0], ww[1], ww[2], w);
-    double rotational = 0.0;
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 3; ++k)
-        rotational += w[i] * m.I[i * 4 + k] * w[k];
-    energy += 0.5 * m.mass * dCalcVectorDot3(v, v) + 0.5 * rotational;
-  }
+  for (dBodyID b : bodies_)
+    energy += ode::kineticEnergy(b);
   return energy;
 }
 
