@@ -1,11 +1,17 @@
 // One ODE body's state (pose and velocities), taken and put back: what a
 // step that must be undone or repeated from the same state keeps; and its
-// kinetic energy.
+// kinetic energy; ODE's vectors as the core's.
 #pragma once
 
 #include <ode/ode.h>
 
+#include "core/math/math.h"
+
 namespace blockstep::ode {
+
+inline Vec3 vec(const dReal* v) {
+  return Vec3(v[0], v[1], v[2]);
+}
 
 struct OdeBodyState {
   dBodyID body = nullptr;

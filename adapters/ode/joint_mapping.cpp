@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "adapters/ode/body_state.h"
 #include "core/world/error.h"
 
 namespace blockstep::ode {
@@ -13,10 +14,6 @@ namespace {
 // Stand-in for an absent stop: far beyond any angle (which ODE keeps in
 // [-pi, pi]) and any sensible slider travel.
 constexpr double kFarStop = 1e9;
-
-Vec3 vec(const dVector3 v) {
-  return Vec3(v[0], v[1], v[2]);
-}
 
 using ParamGetter = dReal (*)(dJointID, int);
 

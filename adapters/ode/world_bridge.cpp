@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "adapters/ode/body_state.h"
 #include "adapters/ode/registry.h"
 
 namespace blockstep::ode {
@@ -13,10 +14,6 @@ constexpr double kOdeDefaultCfm = 1e-5;
 // A geometry vector that moved this far in its body's frame was moved by
 // the program (dJointSet*Anchor / Axis), not by rounding.
 constexpr double kGeometryTolerance = 1e-7;
-
-Vec3 vec(const dReal* v) {
-  return Vec3(v[0], v[1], v[2]);
-}
 
 bool finite3(const dReal* v) {
   return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);

@@ -19,22 +19,13 @@
 #include <string>
 #include <unordered_map>
 
+#include "adapters/ode/body_state.h"
 #include "compare/ode/runner.h"
 #include "compare/pbd/particles.h"
 
 namespace blockstep::compare {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double>(b - a).count();
-}
-
-Vec3 vec(const dReal* v) {
-  return Vec3(v[0], v[1], v[2]);
-}
 
 // The radius of the sphere a body's first shape is taken for.
 double particleRadius(dBodyID body) {
@@ -77,14 +68,14 @@ pbd::StaticShape staticShape(dGeomID g) {
     }
     case dSphereClass:
       s.kind = pbd::StaticShape::Kind::Sphere;
-      s.centre = vec(dGeomGetPosition(g));
+      s.centre = ode::vec(dGeomGetPosition(g));
       s.radius = dGeomSphereGetRadius(g);
       return s;
     case dBoxClass: {
       dVector3 sides;
       dGeomBoxGetLengths(g, sides);
       s.kind = pbd::StaticShape::Kind::Box;
-      s.centre = vec(dGeomGetPosition(g));
+      s.centre = ode::vec(dGeomGetPosition(g));
       s.halfExtents = 0.5 * Vec3(sides[0], sides[1], sides[2]);
       const dReal* R = dGeomGetRotation(g);  // 3 x 4, row major
       for (int i = 0; i < 3; ++i)
@@ -111,7 +102,7 @@ pbd::ParticleSystem particlesOf(const Scene& scene) {
   for (dBodyID b : scene.bodies()) {
     dMass m;
     dBodyGetMass(b, &m);
-    index[b] = ps.addParticle(vec(dBodyGetPosition(b)), vec(dBodyGetLinearVel(b)), m.mass,
+    index[b] = ps.addParticle(ode::vec(dBodyGetPosition(b)), ode::vec(dBodyGetLinearVel(b)), m.mass,
                               particleRadius(b));
   }
   for (const JointRecord& j : scene.joints()) {
@@ -177,7 +168,7 @@ RunResult runParticles(Scene& scene, const Stepper& stepper, const RunOptions& o
   settings.friction = 0.6;  // the scenes' contact surface
   dVector3 g;
   dWorldGetGravity(w, g);
-  settings.gravity = vec(g);
+  settings.gravity = ode::vec(g);
   settings.linearDamping = dWorldGetLinearDamping(w);
 
   r.frames.reserve(options.frames);

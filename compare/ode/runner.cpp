@@ -14,12 +14,6 @@ namespace blockstep::compare {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double seconds(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double>(b - a).count();
-}
-
 [[noreturn]] void reject(const std::string& text, const std::string& why) {
   throw std::invalid_argument(
       "stepper '" + text + "': " + why +

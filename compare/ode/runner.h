@@ -3,6 +3,7 @@
 // joint geometry, the deepest contact and the kinetic energy.
 #pragma once
 
+#include <chrono>
 #include <functional>
 #include <optional>
 #include <string>
@@ -11,6 +12,12 @@
 #include "compare/ode/scene.h"
 
 namespace blockstep::compare {
+
+// The runs' clock, and seconds between two of its readings.
+using Clock = std::chrono::steady_clock;
+inline double seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
 
 // A stepper and its settings, as written on the command line:
 //   quickstep:IT[xSUB]     ODE's dWorldQuickStep, IT iterations, SUB steps

@@ -9,7 +9,7 @@
 namespace blockstep {
 namespace {
 
-std::string bodyName(BodyId id) {
+std::string ownerName(BodyId id) {
   return id == kWorldBody ? std::string("the world") : "body " + std::to_string(id);
 }
 
@@ -17,7 +17,7 @@ std::string bodyName(BodyId id) {
 
 ShapeId World::addShape(const Shape& shape) {
   Shape s = shape;
-  const std::string who = "shape on " + bodyName(s.body);
+  const std::string who = "shape on " + ownerName(s.body);
   if (s.body != kWorldBody) body(s.body);
   if (!s.localPosition.allFinite()) throw Error(who + ": position is not finite");
   if (!isFinite(s.localOrientation) || s.localOrientation.norm() < 1e-9) {
@@ -63,7 +63,9 @@ void World::removeShape(ShapeId id) {
 void World::addContact(const ContactManifold& manifold) {
   ContactManifold m = manifold;
   // Named only when there is an error: contacts are added every step.
-  auto who = [&m] { return "contact between " + bodyName(m.bodyA) + " and " + bodyName(m.bodyB); };
+  auto who = [&m] {
+    return "contact between " + ownerName(m.bodyA) + " and " + ownerName(m.bodyB);
+  };
   if (m.bodyA == m.bodyB) throw Error(who() + ": a contact needs two different bodies");
   if (m.bodyA != kWorldBody) body(m.bodyA);
   if (m.bodyB != kWorldBody) body(m.bodyB);
