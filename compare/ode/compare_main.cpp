@@ -28,14 +28,15 @@ void writeCsv(const std::filesystem::path& path, const RunResult& r) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write " + path.string());
   out << "frame,collide_ms,solve_ms,max_separation_m,rms_separation_m,max_angle_rad,"
-         "penetration_m,contacts,kinetic_energy_j,handed_to_ode\n";
+         "penetration_m,contacts,kinetic_energy_j,potential_energy_j,handed_to_ode\n";
   for (std::size_t f = 0; f < r.frames.size(); ++f) {
     const FrameRecord& rec = r.frames[f];
     const double rms =
         rec.joints.joints > 0 ? std::sqrt(rec.joints.separationSumSq / rec.joints.joints) : 0.0;
     out << f << ',' << rec.collideSeconds * 1e3 << ',' << rec.solveSeconds * 1e3 << ','
         << rec.joints.separation << ',' << rms << ',' << rec.joints.angle << ',' << rec.penetration
-        << ',' << rec.contacts << ',' << rec.kineticEnergy << ',' << rec.handedToOde << '\n';
+        << ',' << rec.contacts << ',' << rec.kineticEnergy << ',' << rec.potentialEnergy << ','
+        << rec.handedToOde << '\n';
   }
 }
 
@@ -54,6 +55,7 @@ nlohmann::json summary(const RunResult& r, double quickSolveMs) {
   j["max_penetration_m"] = r.maxPenetration;
   j["last_second_penetration_m"] = r.lastSecondPenetration;
   j["drift_m"] = r.drift;
+  j["max_energy_gain_j"] = r.maxEnergyGain;
   j["exploded"] = r.exploded;
   j["stopped_because"] = r.stoppedBecause;
   j["ode_messages"] = r.odeMessages;
@@ -168,7 +170,9 @@ nlohmann::json resultToJson(const RunResult& r) {
           {"max_angle", r.maxAngle},
           {"max_penetration", r.maxPenetration},
           {"last_second_penetration", r.lastSecondPenetration},
-          {"drift", r.drift}};
+          {"drift", r.drift},
+          {"start_energy", r.startEnergy},
+          {"max_energy_gain", r.maxEnergyGain}};
 }
 
 RunResult resultFromJson(const nlohmann::json& j) {
@@ -190,6 +194,8 @@ RunResult resultFromJson(const nlohmann::json& j) {
   r.maxPenetration = j.at("max_penetration");
   r.lastSecondPenetration = j.at("last_second_penetration");
   r.drift = j.at("drift");
+  r.startEnergy = j.at("start_energy");
+  r.maxEnergyGain = j.at("max_energy_gain");
   return r;
 }
 
@@ -531,9 +537,9 @@ int main(int argc, char** argv) {
   int labelWidth = 22;
   for (const std::string& label : steppers)
     labelWidth = std::max(labelWidth, static_cast<int>(label.size()));
-  std::printf("%-12s %-*s %7s %10s %10s %9s %12s %12s %10s %10s  %s\n", "scene", labelWidth,
+  std::printf("%-12s %-*s %7s %10s %10s %9s %12s %12s %10s %10s %10s  %s\n", "scene", labelWidth,
               "stepper", "frames", "solve ms", "x qs20", "coll ms", "max sep mm", "rms sep mm",
-              "pen mm", "drift mm", "note");
+              "pen mm", "drift mm", "E gain J", "note");
   // A progress line on a terminal for runs longer than a second (one run
   // at a time only).
   const bool terminal = jobs == 1 && isatty(fileno(stderr)) != 0;
@@ -585,10 +591,10 @@ int main(int argc, char** argv) {
     for (std::size_t k = 0; k < parsed.size(); ++k) {
       const RunResult& r = sceneResults[k];
       const double ratio = quickSolveMs > 0.0 ? r.medianSolveMs / quickSolveMs : 0.0;
-      std::printf("%-12s %-*s %7d %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f  %s\n",
+      std::printf("%-12s %-*s %7d %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f %10.3g  %s\n",
                   r.scene.c_str(), labelWidth, r.stepper.c_str(), r.framesRun, r.medianSolveMs,
                   ratio, r.medianCollideMs, r.maxSeparation * 1e3, r.rmsSeparation * 1e3,
-                  r.maxPenetration * 1e3, r.drift * 1e3, note(r).c_str());
+                  r.maxPenetration * 1e3, r.drift * 1e3, r.maxEnergyGain, note(r).c_str());
       nlohmann::json j = summary(r, quickSolveMs);
       const Stepper& st = parsed[k];
       j["kind"] = st.kind == Stepper::Kind::Quick       ? "quickstep"

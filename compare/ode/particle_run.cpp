@@ -146,6 +146,7 @@ pbd::ParticleSystem particlesOf(const Scene& scene) {
 
 RunResult runParticles(Scene& scene, const Stepper& stepper, const RunOptions& options) {
   RunResult r;
+  r.startEnergy = scene.kineticEnergy() + scene.potentialEnergy();
   r.scene = scene.name();
   r.stepper = stepper.label;
   r.framesAsked = options.frames;
@@ -195,6 +196,7 @@ RunResult runParticles(Scene& scene, const Stepper& stepper, const RunOptions& o
       dBodySetLinearVel(scene.bodies()[i], v.x(), v.y(), v.z());
       dBodySetAngularVel(scene.bodies()[i], 0, 0, 0);
     }
+    rec.potentialEnergy = scene.potentialEnergy();
     r.frames.push_back(rec);
     recordPoses(scene, f + 1, options, r);
     if (options.onFrame) options.onFrame(f + 1, seconds(start, Clock::now()));

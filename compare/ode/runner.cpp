@@ -376,6 +376,8 @@ void summarizeFrames(RunResult& r, double dt) {
     r.maxSeparation = std::max(r.maxSeparation, rec.joints.separation);
     r.maxAngle = std::max(r.maxAngle, rec.joints.angle);
     r.maxPenetration = std::max(r.maxPenetration, rec.penetration);
+    r.maxEnergyGain =
+        std::max(r.maxEnergyGain, rec.kineticEnergy + rec.potentialEnergy - r.startEnergy);
     sumSq += rec.joints.separationSumSq;
     r.runawayFrames += rec.handedToOde > 0;
     r.odeSteppedFrames += rec.steppedByOde;
@@ -413,6 +415,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
   r.stepper = stepper.label;
   r.framesAsked = options.frames;
   r.frames.reserve(options.frames);
+  r.startEnergy = scene.kineticEnergy() + scene.potentialEnergy();
   const dWorldID w = scene.world();
   if (stepper.kind == Stepper::Kind::Particles) {
     configure(scene, stepper);  // XPBD's compliance comes from the world's ERP and CFM
@@ -491,6 +494,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
     if (ok < 0) break;  // not stepped: stoppedBecause says why
     rec.joints = scene.jointError();
     rec.kineticEnergy = scene.kineticEnergy();
+    rec.potentialEnergy = scene.potentialEnergy();
     r.frames.push_back(rec);
     recordPoses(scene, f + 1, options, r);
     if (options.onFrame) options.onFrame(f + 1, seconds(start, Clock::now()));

@@ -77,6 +77,7 @@ struct FrameRecord {
   double penetration = 0.0;  // deepest contact, m
   int contacts = 0;
   double kineticEnergy = 0.0;
+  double potentialEnergy = 0.0;  // of gravity, from the world's origin
   // blockstep: bodies its runaway guard handed to ODE's stepper this
   // frame; whole frames ODE stepped because blockstep does not cover the
   // content.
@@ -100,6 +101,12 @@ struct RunResult {
   double maxPenetration = 0.0;
   double lastSecondPenetration = 0.0;  // mean deepest contact over the last second
   double drift = 0.0;                  // the probe body's distance from its start, m
+  // Mechanical energy (kinetic plus gravity's potential) before the first
+  // frame, and its largest excess over that during the run, J: what a
+  // stepper gave the scene that nothing in it supplies (motors and
+  // kinematic bodies aside).
+  double startEnergy = 0.0;
+  double maxEnergyGain = 0.0;
   // Recorded when RunOptions::poseStride > 0: every body's pose (x, y, z,
   // qw, qx, qy, qz) at the start and after every poseStride-th frame, body
   // after body, frame after frame (the report's 3D replay).

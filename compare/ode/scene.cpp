@@ -226,4 +226,18 @@ double Scene::kineticEnergy() const {
   return energy;
 }
 
+double Scene::potentialEnergy() const {
+  dVector3 g;
+  dWorldGetGravity(world_, g);
+  double energy = 0.0;
+  for (dBodyID b : bodies_) {
+    if (!dBodyGetGravityMode(b)) continue;
+    dMass m;
+    dBodyGetMass(b, &m);
+    const dReal* x = dBodyGetPosition(b);
+    energy -= m.mass * (g[0] * x[0] + g[1] * x[1] + g[2] * x[2]);
+  }
+  return energy;
+}
+
 }  // namespace blockstep::compare

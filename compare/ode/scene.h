@@ -72,6 +72,8 @@ class Scene {
   int contactCount() const { return contactCount_; }
   JointError jointError() const;
   double kineticEnergy() const;
+  // Of gravity, -m g . x summed over the bodies gravity acts on, J.
+  double potentialEnergy() const;
   // The body whose drift the scene reports (stacks: the top box), or null.
   dBodyID probe() const { return probe_; }
   // Every contact's surface: dContactApprox1 with mu 0.6 unless the scene

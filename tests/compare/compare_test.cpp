@@ -56,7 +56,8 @@ TEST(CompareScenes, UnknownScenesAndSizesAreRefused) {
     makeScene("clothes");
     FAIL() << "an unknown scene was built";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("accepted: bridge, car, chain"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("accepted: bridge, car, chain"), std::string::npos)
+        << e.what();
   }
   EXPECT_THROW(makeScene("cloth", -1), std::invalid_argument);
 }
@@ -265,6 +266,29 @@ TEST(CompareRuns, SubStepsCollideEachTimeAndDriftIsTheTopBoxs) {
   EXPECT_LT(r.drift, 0.01);
   EXPECT_LT(r.maxPenetration, 0.01);
   EXPECT_GT(r.frames.back().contacts, 0);
+}
+
+// The energy a run reports: kinetic plus gravity's potential, m g z for
+// each box of the stack (10 boxes of 1 kg, centres 0.25 + 0.5 i m up:
+// 9.81 x 25 = 245.25 J), and a stack at rest gains none of it. A body
+// falling from rest by semi-implicit Euler loses energy (g^2 h^2 / 2 a
+// step), so a stack that only settles cannot gain more than rounding.
+TEST(CompareRuns, EnergyIsKineticPlusGravitysAndARestingStackGainsNone) {
+  RunOptions o;
+  o.frames = 60;
+  auto s = makeScene("stack");
+  const RunResult r = run(*s, parseStepper("quickstep:20x4"), o);
+  EXPECT_NEAR(r.startEnergy, 9.81 * 25.0, 1e-9);
+  const FrameRecord& last = r.frames.back();
+  double potential = 0.0;
+  for (dBodyID b : s->bodies())
+    potential += 9.81 * dBodyGetPosition(b)[2];
+  EXPECT_NEAR(last.potentialEnergy, potential, 1e-9);
+  EXPECT_LT(r.maxEnergyGain, 1e-3 * r.startEnergy);
+  double most = -INFINITY;
+  for (const FrameRecord& f : r.frames)
+    most = std::max(most, f.kineticEnergy + f.potentialEnergy - r.startEnergy);
+  EXPECT_DOUBLE_EQ(r.maxEnergyGain, std::max(0.0, most));
 }
 
 // dWorldStep is not run on an island too large for its dense solve
