@@ -69,4 +69,29 @@ MassProperties capsuleMass(double mass, double radius, double length) {
   return m;
 }
 
+MassProperties combineMass(const std::vector<MassPart>& parts) {
+  if (parts.empty()) throw Error("compound mass: no parts");
+  MassProperties total;
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    const MassPart& p = parts[i];
+    const std::string who = "compound mass: part " + std::to_string(i);
+    if (!(p.mass.mass > 0.0) || !std::isfinite(p.mass.mass))
+      throw Error(who + " needs a positive, finite mass");
+    if (!p.mass.inertia.allFinite() || !p.mass.centre.allFinite() || !p.position.allFinite() ||
+        !isFinite(p.orientation) || p.orientation.norm() < 1e-9) {
+      throw Error(who + " is not finite");
+    }
+    total.mass += p.mass.mass;
+    total.centre += p.mass.mass * (p.position + p.orientation.normalized() * p.mass.centre);
+  }
+  total.centre /= total.mass;
+  for (const MassPart& p : parts) {
+    const Mat3 R = p.orientation.normalized().toRotationMatrix();
+    const Vec3 d = p.position + R * p.mass.centre - total.centre;
+    total.inertia += R * p.mass.inertia * R.transpose() +
+                     p.mass.mass * (d.squaredNorm() * Mat3::Identity() - d * d.transpose());
+  }
+  return total;
+}
+
 }  // namespace blockstep
