@@ -16,30 +16,21 @@ ShapePose poseOf(const Shape& s, const std::vector<Body>& bodies) {
                    (b.orientation * s.localOrientation).toRotationMatrix()};
 }
 
-double boundingRadius(const Shape& s) {
-  switch (s.kind) {
-    case Shape::Kind::Sphere:
-      return s.radius;
-    case Shape::Kind::Box:
-      return s.halfExtents.norm();
-    case Shape::Kind::Plane:
-      return kInf;
-  }
-  return kInf;
-}
-
 // Dispatches on the two kinds, ordering them so the normal points from the
 // manifold's body A to B. Returns the point count; `swapped` says the
-// pair was turned round.
+// pair was turned round. The exact fast paths (sphere and box against
+// planes, spheres and boxes with each other) come first; every other
+// convex pair goes through GJK/EPA and feature clipping.
 int narrowphase(const Shape& s1, const ShapePose& p1, const Shape& s2, const ShapePose& p2,
-                double margin, ContactManifold& m, bool& swapped) {
+                const CollisionSettings& settings, ContactManifold& m, bool& swapped) {
   using K = Shape::Kind;
+  const double margin = settings.margin;
   swapped = false;
   const Shape* a = &s1;
   const Shape* b = &s2;
   const ShapePose* pa = &p1;
   const ShapePose* pb = &p2;
-  // Order: plane < box < sphere as the first shape.
+  // Order: plane < box < the rest as the first shape.
   auto rank = [](K k) { return k == K::Plane ? 0 : k == K::Box ? 1 : 2; };
   if (rank(b->kind) < rank(a->kind)) {
     std::swap(a, b);
@@ -49,57 +40,56 @@ int narrowphase(const Shape& s1, const ShapePose& p1, const Shape& s2, const Sha
   if (a->kind == K::Plane) {
     if (b->kind == K::Sphere) return collideSpherePlane(*a, *b, *pb, margin, m);
     if (b->kind == K::Box) return collideBoxPlane(*a, *b, *pb, margin, m);
-    return 0;  // plane-plane: both static
+    if (b->kind == K::Plane) return 0;  // both static
+    return collideConvexPlane(*a, *b, *pb, margin, m);
   }
-  if (a->kind == K::Box) {
-    if (b->kind == K::Box) return collideBoxes(*a, *pa, *b, *pb, margin, m);
+  if (a->kind == K::Box && b->kind == K::Box && settings.boxBoxBySat)
+    return collideBoxes(*a, *pa, *b, *pb, margin, m);
+  if (a->kind == K::Box && b->kind == K::Sphere)
     return collideBoxSphere(*a, *pa, *b, *pb, margin, m);
-  }
-  return collideSpheres(*a, *pa, *b, *pb, margin, m);
+  if (a->kind == K::Sphere && b->kind == K::Sphere)
+    return collideSpheres(*a, *pa, *b, *pb, margin, m);
+  return collideConvex(*a, *pa, *b, *pb, margin, m);
 }
 
 }  // namespace
 
-void collideShapes(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
-                   const CollisionSettings& settings, const std::vector<std::uint64_t>& jointed,
-                   std::vector<ContactManifold>& out) {
-  auto movable = [&](BodyId id) { return id != kWorldBody && bodies[id].type != BodyType::Static; };
+void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
+                       const CollisionSettings& settings, const std::vector<std::uint64_t>& jointed,
+                       std::vector<ContactManifold>& out) {
+  poses_.resize(shapes.size());
+  boxes_.resize(shapes.size());
   for (std::size_t i = 0; i < shapes.size(); ++i) {
+    if (shapes[i].alive) poses_[i] = poseOf(shapes[i], bodies);
+    boxes_[i] = shapeAabb(shapes[i], poses_[i], 0.5 * settings.margin);
+  }
+  broadPhase_.findPairs(boxes_, settings.broadPhase, pairs_);
+  auto movable = [&](BodyId id) { return id != kWorldBody && bodies[id].type != BodyType::Static; };
+  for (const auto& [i, j] : pairs_) {
     const Shape& s1 = shapes[i];
-    if (!s1.alive) continue;
-    const ShapePose p1 = poseOf(s1, bodies);
-    const double r1 = boundingRadius(s1);
-    for (std::size_t j = i + 1; j < shapes.size(); ++j) {
-      const Shape& s2 = shapes[j];
-      if (!s2.alive || s1.body == s2.body) continue;
-      // Only dynamic bodies are pushed: two immovable shapes never collide.
-      const bool dyn1 = s1.body != kWorldBody && bodies[s1.body].isDynamic();
-      const bool dyn2 = s2.body != kWorldBody && bodies[s2.body].isDynamic();
-      if (!dyn1 && !dyn2) continue;
-      if (!movable(s1.body) && !movable(s2.body)) continue;
-      if (!settings.collideConnected && s1.body != kWorldBody && s2.body != kWorldBody &&
-          std::binary_search(jointed.begin(), jointed.end(), bodyPairKey(s1.body, s2.body))) {
-        continue;
-      }
-      const ShapePose p2 = poseOf(s2, bodies);
-      const double r2 = boundingRadius(s2);
-      if (std::isfinite(r1) && std::isfinite(r2) &&
-          (p2.position - p1.position).norm() > r1 + r2 + settings.margin) {
-        continue;
-      }
-      ContactManifold m;
-      bool swapped = false;
-      if (narrowphase(s1, p1, s2, p2, settings.margin, m, swapped) == 0) continue;
-      const Shape& a = swapped ? s2 : s1;
-      const Shape& b = swapped ? s1 : s2;
-      m.bodyA = a.body;
-      m.bodyB = b.body;
-      m.surface = settings.surface;
-      m.surface.mu = std::sqrt(a.friction * b.friction);
-      m.surface.mu2 = -1.0;
-      m.surface.restitution = std::max(a.restitution, b.restitution);
-      out.push_back(m);
+    const Shape& s2 = shapes[j];
+    if (s1.body == s2.body) continue;
+    // Only dynamic bodies are pushed: two immovable shapes never collide.
+    const bool dyn1 = s1.body != kWorldBody && bodies[s1.body].isDynamic();
+    const bool dyn2 = s2.body != kWorldBody && bodies[s2.body].isDynamic();
+    if (!dyn1 && !dyn2) continue;
+    if (!movable(s1.body) && !movable(s2.body)) continue;
+    if (!settings.collideConnected && s1.body != kWorldBody && s2.body != kWorldBody &&
+        std::binary_search(jointed.begin(), jointed.end(), bodyPairKey(s1.body, s2.body))) {
+      continue;
     }
+    ContactManifold m;
+    bool swapped = false;
+    if (narrowphase(s1, poses_[i], s2, poses_[j], settings, m, swapped) == 0) continue;
+    const Shape& a = swapped ? s2 : s1;
+    const Shape& b = swapped ? s1 : s2;
+    m.bodyA = a.body;
+    m.bodyB = b.body;
+    m.surface = settings.surface;
+    m.surface.mu = std::sqrt(a.friction * b.friction);
+    m.surface.mu2 = -1.0;
+    m.surface.restitution = std::max(a.restitution, b.restitution);
+    out.push_back(m);
   }
 }
 

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/collision/broadphase.h"
 #include "core/collision/shapes.h"
 #include "core/constraints/contact.h"
 
@@ -14,6 +15,11 @@ struct CollisionSettings {
   double margin = 0.02;
   // Bodies joined by a joint collide only when this is set.
   bool collideConnected = false;
+  // Box against box by the separating-axis test with face clipping (the
+  // comparison path the paper describes), or, when false, by GJK/EPA and
+  // feature clipping like every other convex pair.
+  bool boxBoxBySat = true;
+  BroadPhaseMethod broadPhase = BroadPhaseMethod::Automatic;
   // Every manifold starts from this surface; friction mixes as
   // sqrt(muA muB) and restitution as max(eA, eB) of the two shapes.
   // Rigid normals (CFM 0: ODE's CFM is a compliance in m/N, so heavy
@@ -31,12 +37,22 @@ struct CollisionSettings {
   }
 };
 
-// Appends the manifolds of all touching pairs to `out`. `jointed` holds
-// sorted keys (bodyPairKey) of pairs that do not collide. Broad phase:
-// bounding spheres, all pairs (a tree comes with the collision module).
-void collideShapes(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
-                   const CollisionSettings& settings, const std::vector<std::uint64_t>& jointed,
-                   std::vector<ContactManifold>& out);
+// The collide stage. Keeps its buffers (poses, boxes, pairs, the sweep's
+// order) from step to step, so a warmed-up scene allocates nothing.
+class Collider {
+ public:
+  // Appends the manifolds of all touching pairs to `out`. `jointed` holds
+  // sorted keys (bodyPairKey) of pairs that do not collide.
+  void collide(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
+               const CollisionSettings& settings, const std::vector<std::uint64_t>& jointed,
+               std::vector<ContactManifold>& out);
+
+ private:
+  std::vector<ShapePose> poses_;
+  std::vector<Aabb> boxes_;
+  std::vector<std::pair<int, int>> pairs_;
+  BroadPhase broadPhase_;
+};
 
 inline std::uint64_t bodyPairKey(BodyId a, BodyId b) {
   const auto lo = static_cast<std::uint32_t>(std::min(a, b));

@@ -3,63 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/collision/gjk_epa.h"
+#include "core/collision/manifold.h"
+
 namespace blockstep {
-namespace {
-
-void addPoint(ContactManifold& m, const Vec3& surfacePointA, double separation,
-              std::uint32_t feature) {
-  ContactPoint& p = m.points[m.pointCount++];
-  p = ContactPoint{};
-  // Midway between the two surfaces along the normal.
-  p.position = surfacePointA + 0.5 * separation * m.normal;
-  p.separation = separation;
-  p.feature = feature;
-}
-
-// Keeps at most four of n candidate points: the deepest, the one farthest
-// from it, the one spanning the largest triangle with those two, and the
-// one farthest outside that triangle's plane of spread (largest quad).
-int reduceToFour(const Vec3* pos, const double* sep, int n, int* keep) {
-  if (n <= 4) {
-    for (int i = 0; i < n; ++i)
-      keep[i] = i;
-    return n;
-  }
-  int a = 0;
-  for (int i = 1; i < n; ++i)
-    if (sep[i] < sep[a]) a = i;
-  int b = -1;
-  double best = -1.0;
-  for (int i = 0; i < n; ++i) {
-    const double d = (pos[i] - pos[a]).squaredNorm();
-    if (i != a && d > best) best = d, b = i;
-  }
-  int c = -1;
-  best = -1.0;
-  for (int i = 0; i < n; ++i) {
-    if (i == a || i == b) continue;
-    const double area = (pos[b] - pos[a]).cross(pos[i] - pos[a]).squaredNorm();
-    if (area > best) best = area, c = i;
-  }
-  int d = -1;
-  best = -1.0;
-  for (int i = 0; i < n; ++i) {
-    if (i == a || i == b || i == c) continue;
-    // Area added by i to the triangle: the largest of the three triangles
-    // it forms with an edge of (a, b, c), taken on the far side.
-    const double add = std::max({(pos[a] - pos[i]).cross(pos[b] - pos[i]).squaredNorm(),
-                                 (pos[b] - pos[i]).cross(pos[c] - pos[i]).squaredNorm(),
-                                 (pos[c] - pos[i]).cross(pos[a] - pos[i]).squaredNorm()});
-    if (add > best) best = add, d = i;
-  }
-  keep[0] = a;
-  keep[1] = b;
-  keep[2] = c;
-  keep[3] = d;
-  return 4;
-}
-
-}  // namespace
 
 int collideSpherePlane(const Shape& plane, const Shape& sphere, const ShapePose& ps, double margin,
                        ContactManifold& m) {
@@ -68,7 +15,7 @@ int collideSpherePlane(const Shape& plane, const Shape& sphere, const ShapePose&
   const double separation = plane.planeNormal.dot(ps.position) - plane.planeOffset - sphere.radius;
   if (separation > margin) return 0;
   const Vec3 onPlane = ps.position - (separation + sphere.radius) * plane.planeNormal;
-  addPoint(m, onPlane, separation, 1);
+  addManifoldPoint(m, onPlane, separation, 1);
   return 1;
 }
 
@@ -95,7 +42,7 @@ int collideBoxPlane(const Shape& plane, const Shape& box, const ShapePose& pb, d
   int keep[4];
   const int k = reduceToFour(pos, sep, n, keep);
   for (int i = 0; i < k; ++i) {
-    addPoint(m, pos[keep[i]], sep[keep[i]], static_cast<std::uint32_t>(ids[keep[i]] + 1));
+    addManifoldPoint(m, pos[keep[i]], sep[keep[i]], static_cast<std::uint32_t>(ids[keep[i]] + 1));
   }
   return k;
 }
@@ -108,7 +55,7 @@ int collideSpheres(const Shape& a, const ShapePose& pa, const Shape& b, const Sh
   const double separation = dist - a.radius - b.radius;
   if (separation > margin) return 0;
   m.normal = dist > 1e-12 ? Vec3(d / dist) : Vec3::UnitZ();
-  addPoint(m, pa.position + a.radius * m.normal, separation, 1);
+  addManifoldPoint(m, pa.position + a.radius * m.normal, separation, 1);
   return 1;
 }
 
@@ -142,7 +89,7 @@ int collideBoxSphere(const Shape& box, const ShapePose& pb, const Shape& sphere,
   }
   if (separation > margin) return 0;
   m.normal = pb.rotation * normalLocal;
-  addPoint(m, pb.position + pb.rotation * surfaceLocal, separation, 1);
+  addManifoldPoint(m, pb.position + pb.rotation * surfaceLocal, separation, 1);
   return 1;
 }
 
@@ -211,7 +158,7 @@ int collideBoxes(const Shape& a, const ShapePose& pa, const Shape& b, const Shap
     double tParam = std::clamp(vw + uv * sParam, -eB[edgeB], eB[edgeB]);
     const Vec3 qA = pA + sParam * u, qB = pB + tParam * v;
     m.normal = n;
-    addPoint(m, qA, (qB - qA).dot(n), 100 + 3 * edgeA + edgeB);
+    addManifoldPoint(m, qA, (qB - qA).dot(n), 100 + 3 * edgeA + edgeB);
     return 1;
   }
 
@@ -285,9 +232,77 @@ int collideBoxes(const Shape& a, const ShapePose& pa, const Shape& b, const Shap
     const Vec3 onA = refIsA ? pos[keep[k]] : Vec3(pos[keep[k]] + sep[keep[k]] * nRef);
     // Features are left 0: clipped points are matched across steps by
     // position.
-    addPoint(m, onA, sep[keep[k]], 0);
+    addManifoldPoint(m, onA, sep[keep[k]], 0);
   }
   return kept;
+}
+
+int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,
+                  double margin, ContactManifold& m) {
+  m.pointCount = 0;
+  const PosedConvex A(a, pa), B(b, pb);
+  const CoreDistance apart = coreDistance(A, B);
+  Vec3 n;
+  double separation;
+  Vec3 surfaceA;
+  if (!apart.overlapping) {
+    separation = apart.distance - A.radius - B.radius;
+    if (separation > margin) return 0;
+    n = (apart.pointB - apart.pointA) / apart.distance;
+    surfaceA = apart.pointA + A.radius * n;
+  } else if (const CorePenetration deep = corePenetration(A, B); deep.found) {
+    n = deep.normal;
+    separation = -deep.depth - A.radius - B.radius;
+    // libccd's position is a blend of the support points of EPA's last
+    // face, off the contact on an edge crossing. The witness point comes
+    // from GJK instead, with B moved just clear along the normal.
+    PosedConvex clear = B;
+    const double gap = 1e-3 * (A.coreRadius() + B.coreRadius());
+    clear.pose.position += (deep.depth + gap) * n;
+    const CoreDistance witness = coreDistance(A, clear);
+    surfaceA = witness.overlapping ? Vec3(deep.position + (0.5 * deep.depth + A.radius) * n)
+                                   : Vec3(witness.pointA + A.radius * n);
+  } else {
+    // Cores just touching (libccd sees no overlap) or in a flat overlap
+    // EPA cannot expand (crossing capsule segments): the radii are the
+    // depth, along the line of centres.
+    const Vec3 d = pb.position - pa.position;
+    n = d.squaredNorm() > 0.0 ? Vec3(d.normalized()) : Vec3::UnitZ();
+    separation = -A.radius - B.radius;
+    surfaceA = apart.pointA + A.radius * n;
+  }
+  return manifoldFromFeatures(A, B, n, surfaceA, separation, margin, m);
+}
+
+int collideConvexPlane(const Shape& plane, const Shape& shape, const ShapePose& ps, double margin,
+                       ContactManifold& m) {
+  m.normal = plane.planeNormal;
+  m.pointCount = 0;
+  const Vec3& n = plane.planeNormal;
+  const PosedConvex c(shape, ps);
+  const Vec3 deepest = c.coreSupport(-n) - c.radius * n;
+  const double deepestSeparation = n.dot(deepest) - plane.planeOffset;
+  if (deepestSeparation > margin) return 0;
+  Feature feature;
+  supportingFeature(c, -n, feature);
+  Vec3 pos[kMaxFeaturePoints];
+  double sep[kMaxFeaturePoints];
+  int count = 0;
+  for (int i = 0; i < feature.count; ++i) {
+    const double s = n.dot(feature.points[i]) - plane.planeOffset;
+    if (s > margin) continue;
+    pos[count] = feature.points[i] - s * n;  // on the plane
+    sep[count++] = s;
+  }
+  if (count == 0) {
+    addManifoldPoint(m, deepest - deepestSeparation * n, deepestSeparation, 0);
+    return 1;
+  }
+  int keep[4];
+  const int k = reduceToFour(pos, sep, count, keep);
+  for (int i = 0; i < k; ++i)
+    addManifoldPoint(m, pos[keep[i]], sep[keep[i]], 0);
+  return k;
 }
 
 }  // namespace blockstep

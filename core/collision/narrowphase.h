@@ -24,4 +24,17 @@ int collideBoxSphere(const Shape& box, const ShapePose& pb, const Shape& sphere,
 int collideBoxes(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,
                  double margin, ContactManifold& m);
 
+// Any two convex shapes (sphere, capsule, cylinder, box, hull): GJK on
+// the cores when they are apart, EPA (libccd) when they overlap, then the
+// manifold from the features touching along the normal found: the
+// reference face (the one most along the normal) clips the incident
+// feature, and the points within the margin are reduced to four.
+int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,
+                  double margin, ContactManifold& m);
+// Any convex shape against a plane: its support point below the plane,
+// and the points of its feature facing the plane that lie within the
+// margin.
+int collideConvexPlane(const Shape& plane, const Shape& shape, const ShapePose& ps, double margin,
+                       ContactManifold& m);
+
 }  // namespace blockstep

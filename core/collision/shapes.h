@@ -1,26 +1,31 @@
-// Collision shapes attached to bodies. This is the contact generation the
-// solver's tests need (sphere, box, plane; box-box by SAT with face
-// clipping); the collision module generalizes it (capsules, convex
-// polyhedra through GJK/EPA, compounds, a broadphase for large scenes).
+// Collision shapes attached to bodies (the paper's section 5): spheres,
+// capsules, cylinders, boxes and convex hulls on bodies, planes on the
+// world. A body may carry several shapes (a compound approximating a
+// concave body). Capsules and cylinders lie along their local z axis, as
+// in ODE.
 #pragma once
 
 #include <cstdint>
+#include <memory>
 
 #include "core/body/body.h"
+#include "core/collision/convex_hull.h"
 
 namespace blockstep {
 
 using ShapeId = std::int32_t;
 
 struct Shape {
-  enum class Kind : std::uint8_t { Sphere, Box, Plane };
+  enum class Kind : std::uint8_t { Sphere, Capsule, Cylinder, Box, Convex, Plane };
   Kind kind = Kind::Sphere;
   BodyId body = kWorldBody;           // planes belong to the world
   Vec3 localPosition = Vec3::Zero();  // in the body's frame
   Quat localOrientation = Quat::Identity();
-  double radius = 0.0;               // sphere
-  Vec3 halfExtents = Vec3::Zero();   // box
-  Vec3 planeNormal = Vec3::UnitZ();  // plane: points x with normal.x <= offset are inside
+  double radius = 0.0;                     // sphere, capsule, cylinder
+  double halfLength = 0.0;                 // capsule (its segment) and cylinder, along local z
+  Vec3 halfExtents = Vec3::Zero();         // box
+  std::shared_ptr<const ConvexHull> hull;  // convex: shared by the shapes made from it
+  Vec3 planeNormal = Vec3::UnitZ();        // plane: points x with normal.x <= offset are inside
   double planeOffset = 0.0;
   double friction = 0.6;
   double restitution = 0.0;
@@ -31,6 +36,30 @@ struct Shape {
     s.kind = Kind::Sphere;
     s.body = body;
     s.radius = radius;
+    return s;
+  }
+  // `length` is the cylinder part, without the caps (ODE's convention).
+  static Shape capsule(BodyId body, double radius, double length) {
+    Shape s;
+    s.kind = Kind::Capsule;
+    s.body = body;
+    s.radius = radius;
+    s.halfLength = 0.5 * length;
+    return s;
+  }
+  static Shape cylinder(BodyId body, double radius, double length) {
+    Shape s;
+    s.kind = Kind::Cylinder;
+    s.body = body;
+    s.radius = radius;
+    s.halfLength = 0.5 * length;
+    return s;
+  }
+  static Shape convex(BodyId body, std::shared_ptr<const ConvexHull> hull) {
+    Shape s;
+    s.kind = Kind::Convex;
+    s.body = body;
+    s.hull = std::move(hull);
     return s;
   }
   static Shape box(BodyId body, const Vec3& halfExtents) {

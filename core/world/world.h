@@ -151,6 +151,7 @@ class World {
   std::vector<std::uint64_t> jointedPairs_;
   std::vector<std::int32_t> contactOrder_;  // this step's manifolds by body pair (prepareContacts)
   CollisionSettings collision_;
+  Collider collider_;
   double matchDistance_ = 0.02;
   double persistDistance_ = 0.0;
   std::vector<std::uint8_t> carriedOld_;  // per old point: carried this step (prepareContacts)

@@ -30,9 +30,27 @@ ShapeId World::addShape(const Shape& shape) {
         throw Error(who + ": sphere radius must be positive and finite");
       }
       break;
+    case Shape::Kind::Capsule:
+    case Shape::Kind::Cylinder: {
+      const bool capsule = s.kind == Shape::Kind::Capsule;
+      const char* name = capsule ? "capsule" : "cylinder";
+      if (!(s.radius > 0.0) || !std::isfinite(s.radius)) {
+        throw Error(who + ": " + name + " radius must be positive and finite");
+      }
+      if (!(capsule ? s.halfLength >= 0.0 : s.halfLength > 0.0) || !std::isfinite(s.halfLength)) {
+        throw Error(who + ": " + name + " length must be " + (capsule ? ">= 0" : "positive") +
+                    " and finite");
+      }
+      break;
+    }
     case Shape::Kind::Box:
       if (!(s.halfExtents.minCoeff() > 0.0) || !s.halfExtents.allFinite()) {
         throw Error(who + ": box half extents must be positive and finite");
+      }
+      break;
+    case Shape::Kind::Convex:
+      if (!s.hull || s.hull->faces().empty()) {
+        throw Error(who + ": a convex shape needs a hull (ConvexHull::fromPoints)");
       }
       break;
     case Shape::Kind::Plane: {
@@ -135,7 +153,7 @@ void World::collide() {
     }
   }
   std::sort(jointedPairs_.begin(), jointedPairs_.end());
-  collideShapes(shapes_, bodies_, collision_, jointedPairs_, contacts_);
+  collider_.collide(shapes_, bodies_, collision_, jointedPairs_, contacts_);
 }
 
 // Tangents, body-fixed anchors, and the impulses of the matching points of

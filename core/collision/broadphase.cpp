@@ -1,0 +1,92 @@
+#include "core/collision/broadphase.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace blockstep {
+
+Aabb shapeAabb(const Shape& s, const ShapePose& pose, double grow) {
+  Aabb box;
+  if (!s.alive) return box;
+  const Mat3& R = pose.rotation;
+  Vec3 half;
+  Vec3 centre = pose.position;
+  switch (s.kind) {
+    case Shape::Kind::Sphere:
+      half = Vec3::Constant(s.radius);
+      break;
+    case Shape::Kind::Capsule:
+      half = s.halfLength * R.col(2).cwiseAbs() + Vec3::Constant(s.radius);
+      break;
+    case Shape::Kind::Cylinder: {
+      // Along world axis i: the axis's reach, and the rim disc's, whose
+      // extent is r sqrt(1 - a_i^2).
+      const Vec3 a = R.col(2);
+      for (int i = 0; i < 3; ++i)
+        half[i] =
+            s.halfLength * std::abs(a[i]) + s.radius * std::sqrt(std::max(0.0, 1.0 - a[i] * a[i]));
+      break;
+    }
+    case Shape::Kind::Box:
+      half = R.cwiseAbs() * s.halfExtents;
+      break;
+    case Shape::Kind::Convex: {
+      Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
+      for (const Vec3& v : s.hull->vertices())
+        lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+      centre += R * (0.5 * (lo + hi));
+      half = R.cwiseAbs() * (0.5 * (hi - lo));
+      break;
+    }
+    case Shape::Kind::Plane:
+      box.lo = Vec3::Constant(-kInf);
+      box.hi = Vec3::Constant(kInf);
+      return box;
+  }
+  box.lo = centre - half - Vec3::Constant(grow);
+  box.hi = centre + half + Vec3::Constant(grow);
+  return box;
+}
+
+void BroadPhase::findPairs(const std::vector<Aabb>& boxes, BroadPhaseMethod method,
+                           std::vector<std::pair<int, int>>& pairs) {
+  pairs.clear();
+  const int n = static_cast<int>(boxes.size());
+  if (method == BroadPhaseMethod::Automatic) {
+    method = n < 64 ? BroadPhaseMethod::AllPairs : BroadPhaseMethod::SweepAndPrune;
+  }
+  if (method == BroadPhaseMethod::AllPairs) {
+    for (int i = 0; i < n; ++i)
+      for (int j = i + 1; j < n; ++j)
+        if (boxes[i].overlaps(boxes[j])) pairs.emplace_back(i, j);
+    return;
+  }
+  if (static_cast<int>(order_.size()) != n) {
+    order_.resize(n);
+    for (int i = 0; i < n; ++i)
+      order_[i] = i;
+  }
+  // Insertion sort by lo.x: nearly sorted from the last call.
+  for (int k = 1; k < n; ++k) {
+    const int moving = order_[k];
+    const double key = boxes[moving].lo.x();
+    int j = k - 1;
+    while (j >= 0 && boxes[order_[j]].lo.x() > key) {
+      order_[j + 1] = order_[j];
+      --j;
+    }
+    order_[j + 1] = moving;
+  }
+  for (int k = 0; k < n; ++k) {
+    const Aabb& a = boxes[order_[k]];
+    if (!(a.lo.x() <= a.hi.x())) continue;  // empty: sorted last, overlaps nothing
+    for (int l = k + 1; l < n && boxes[order_[l]].lo.x() <= a.hi.x(); ++l) {
+      if (!a.overlaps(boxes[order_[l]])) continue;
+      const int i = order_[k], j = order_[l];
+      pairs.emplace_back(std::min(i, j), std::max(i, j));
+    }
+  }
+  std::sort(pairs.begin(), pairs.end());
+}
+
+}  // namespace blockstep

@@ -1,0 +1,46 @@
+// The broad phase: which pairs of shapes are close enough to be tested by
+// the narrow phase. Each shape gets an axis-aligned box grown by half the
+// contact margin (so pairs within the margin overlap). Two methods give
+// the same pairs in the same order: all pairs, for small scenes, and
+// sweep and prune along x, whose order is kept from step to step so the
+// re-sort is an insertion sort over nearly sorted boxes (linear when the
+// bodies move little, as they do between steps).
+#pragma once
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "core/collision/shapes.h"
+
+namespace blockstep {
+
+struct Aabb {
+  Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);  // empty
+  bool overlaps(const Aabb& o) const {
+    return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all();
+  }
+};
+
+// The shape's box in the world, grown by `grow` on every side; planes are
+// unbounded, dead shapes empty.
+Aabb shapeAabb(const Shape& s, const ShapePose& pose, double grow);
+
+enum class BroadPhaseMethod : std::uint8_t {
+  Automatic,  // all pairs below 64 shapes, sweep and prune above
+  AllPairs,
+  SweepAndPrune,
+};
+
+class BroadPhase {
+ public:
+  // The pairs (i < j) of overlapping boxes, sorted. Empty boxes overlap
+  // nothing.
+  void findPairs(const std::vector<Aabb>& boxes, BroadPhaseMethod method,
+                 std::vector<std::pair<int, int>>& pairs);
+
+ private:
+  std::vector<int> order_;  // sweep and prune: box indices by lo.x, kept across calls
+};
+
+}  // namespace blockstep

@@ -1,0 +1,216 @@
+#include "core/collision/gjk_epa.h"
+
+#include <ccd/ccd.h>
+
+#include <cmath>
+
+namespace blockstep {
+namespace {
+
+// A vertex of the Minkowski difference, with the two support points it
+// came from (the closest points are their barycentric mix).
+struct SimplexVertex {
+  Vec3 w, a, b;  // w = a - b
+};
+
+struct Simplex {
+  SimplexVertex v[4];
+  double weight[4];
+  int count = 0;
+
+  Vec3 closest() const {
+    Vec3 p = Vec3::Zero();
+    for (int i = 0; i < count; ++i)
+      p += weight[i] * v[i].w;
+    return p;
+  }
+  void keep(std::initializer_list<std::pair<int, double>> vertices) {
+    SimplexVertex kept[4];
+    double weights[4];
+    int n = 0;
+    for (const auto& [i, lambda] : vertices) {
+      kept[n] = v[i];
+      weights[n++] = lambda;
+    }
+    for (int i = 0; i < n; ++i)
+      v[i] = kept[i], weight[i] = weights[i];
+    count = n;
+  }
+};
+
+void closestOnSegment(Simplex& s) {
+  const Vec3 &A = s.v[0].w, &B = s.v[1].w;
+  const Vec3 AB = B - A;
+  const double len2 = AB.squaredNorm();
+  const double t = len2 > 0.0 ? -A.dot(AB) / len2 : 0.0;
+  if (t <= 0.0) return s.keep({{0, 1.0}});
+  if (t >= 1.0) return s.keep({{1, 1.0}});
+  s.keep({{0, 1.0 - t}, {1, t}});
+}
+
+// Ericson, "Real-Time Collision Detection" 5.1.5: the origin's closest
+// point on triangle ABC by its Voronoi regions.
+void closestOnTriangle(Simplex& s, int ia, int ib, int ic) {
+  const Vec3 &a = s.v[ia].w, &b = s.v[ib].w, &c = s.v[ic].w;
+  const Vec3 ab = b - a, ac = c - a, ap = -a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0.0 && d2 <= 0.0) return s.keep({{ia, 1.0}});
+  const Vec3 bp = -b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0.0 && d4 <= d3) return s.keep({{ib, 1.0}});
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+    const double t = d1 / (d1 - d3);
+    return s.keep({{ia, 1.0 - t}, {ib, t}});
+  }
+  const Vec3 cp = -c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0.0 && d5 <= d6) return s.keep({{ic, 1.0}});
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+    const double t = d2 / (d2 - d6);
+    return s.keep({{ia, 1.0 - t}, {ic, t}});
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) {
+    const double t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return s.keep({{ib, 1.0 - t}, {ic, t}});
+  }
+  const double denom = 1.0 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  s.keep({{ia, 1.0 - v - w}, {ib, v}, {ic, w}});
+}
+
+// Whether the origin and D lie on opposite sides of plane ABC (a flat
+// tetrahedron counts every face as facing the origin).
+bool originOutside(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  const Vec3 n = (b - a).cross(c - a);
+  const double signOrigin = -a.dot(n), signD = (d - a).dot(n);
+  if (signD * signD <= 1e-24 * n.squaredNorm() * (d - a).squaredNorm()) return true;
+  return signOrigin * signD < 0.0;
+}
+
+// The closest point of tetrahedron ABCD: the best of the faces the origin
+// is outside of; false when the origin is inside.
+bool closestOnTetrahedron(Simplex& s) {
+  static constexpr int kFaces[4][4] = {{0, 1, 2, 3}, {0, 2, 3, 1}, {0, 3, 1, 2}, {1, 3, 2, 0}};
+  Simplex best;
+  double bestDistance = kInf;
+  bool outside = false;
+  for (const auto& f : kFaces) {
+    if (!originOutside(s.v[f[0]].w, s.v[f[1]].w, s.v[f[2]].w, s.v[f[3]].w)) continue;
+    outside = true;
+    Simplex trial = s;
+    closestOnTriangle(trial, f[0], f[1], f[2]);
+    const double d = trial.closest().squaredNorm();
+    if (d < bestDistance) bestDistance = d, best = trial;
+  }
+  if (outside) s = best;
+  return outside;
+}
+
+// libccd's view of a core: its support mapping and centre.
+void ccdSupport(const void* object, const ccd_vec3_t* direction, ccd_vec3_t* out) {
+  const auto* c = static_cast<const PosedConvex*>(object);
+  const Vec3 p = c->coreSupport(Vec3(direction->v[0], direction->v[1], direction->v[2]));
+  ccdVec3Set(out, p.x(), p.y(), p.z());
+}
+
+void ccdCentre(const void* object, ccd_vec3_t* out) {
+  const auto* c = static_cast<const PosedConvex*>(object);
+  ccdVec3Set(out, c->pose.position.x(), c->pose.position.y(), c->pose.position.z());
+}
+
+}  // namespace
+
+CoreDistance coreDistance(const PosedConvex& a, const PosedConvex& b) {
+  CoreDistance out;
+  const double scale = a.coreRadius() + b.coreRadius() + a.radius + b.radius +
+                       (b.pose.position - a.pose.position).norm();
+  const double touching = 1e-10 * scale;
+  auto vertex = [&](const Vec3& direction) {
+    SimplexVertex v;
+    v.a = a.coreSupport(direction);
+    v.b = b.coreSupport(-direction);
+    v.w = v.a - v.b;
+    return v;
+  };
+  Simplex s;
+  Vec3 start = b.pose.position - a.pose.position;
+  if (start.squaredNorm() == 0.0) start = Vec3::UnitX();
+  s.v[0] = vertex(start);
+  s.weight[0] = 1.0;
+  s.count = 1;
+  Vec3 v = s.v[0].w;
+  double vv = v.squaredNorm();
+  // Overlapping: the cores' points the simplex holds, averaged (a point
+  // inside both, for callers that need one).
+  auto overlap = [&] {
+    out.overlapping = true;
+    out.pointA = out.pointB = Vec3::Zero();
+    for (int i = 0; i < s.count; ++i) {
+      out.pointA += s.v[i].a / s.count;
+      out.pointB += s.v[i].b / s.count;
+    }
+    return out;
+  };
+  constexpr int kMaxIterations = 64;
+  for (out.iterations = 0; out.iterations < kMaxIterations; ++out.iterations) {
+    if (vv <= touching * touching) return overlap();
+    const SimplexVertex w = vertex(-v);
+    // Converged: the support along -v gains nothing on |v| (the distance
+    // lies between v.w / |v| and |v|).
+    if (vv - v.dot(w.w) <= 1e-12 * vv) break;
+    bool repeated = false;
+    for (int i = 0; i < s.count; ++i)
+      repeated |= s.v[i].w == w.w;
+    if (repeated) break;
+    s.v[s.count] = w;
+    s.weight[s.count++] = 0.0;
+    if (s.count == 2) closestOnSegment(s);
+    if (s.count == 3) closestOnTriangle(s, 0, 1, 2);
+    if (s.count == 4 && !closestOnTetrahedron(s)) return overlap();
+    const Vec3 next = s.closest();
+    const double nn = next.squaredNorm();
+    if (nn >= vv) break;  // rounding: no more progress
+    v = next;
+    vv = nn;
+  }
+  out.distance = std::sqrt(vv);
+  out.pointA = out.pointB = Vec3::Zero();
+  for (int i = 0; i < s.count; ++i) {
+    out.pointA += s.weight[i] * s.v[i].a;
+    out.pointB += s.weight[i] * s.v[i].b;
+  }
+  if (out.distance <= touching) return overlap();
+  return out;
+}
+
+CorePenetration corePenetration(const PosedConvex& a, const PosedConvex& b) {
+  ccd_t ccd;
+  CCD_INIT(&ccd);
+  ccd.support1 = ccdSupport;
+  ccd.support2 = ccdSupport;
+  ccd.center1 = ccdCentre;
+  ccd.center2 = ccdCentre;
+  ccd.max_iterations = 200;
+  // Absolute, in metres: polytope cores end exactly anyway; a cylinder's
+  // round side converges to this.
+  ccd.epa_tolerance = 1e-10 * (a.coreRadius() + b.coreRadius());
+  ccd_real_t depth = 0.0;
+  ccd_vec3_t dir, pos;
+  CorePenetration out;
+  if (ccdGJKPenetration(&a, &b, &ccd, &depth, &dir, &pos) != 0) return out;
+  const Vec3 n(dir.v[0], dir.v[1], dir.v[2]);
+  const Vec3 p(pos.v[0], pos.v[1], pos.v[2]);
+  if (!std::isfinite(depth) || !n.allFinite() || !p.allFinite() || n.squaredNorm() < 0.5) {
+    return out;
+  }
+  out.found = true;
+  out.depth = depth;
+  out.normal = n.normalized();
+  out.position = p;
+  return out;
+}
+
+}  // namespace blockstep

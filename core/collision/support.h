@@ -1,0 +1,42 @@
+// Convex shapes as GJK and EPA see them (the paper's section 5.1): a
+// support mapping, the point of the shape farthest along a direction. A
+// sphere and a capsule are a core (a point, a segment) grown by a radius,
+// so the distance algorithms work on the core, where they end exactly, and
+// add the radius afterwards. The supporting feature (the face, edge or
+// point that touches along a normal) is what the contact manifold clips.
+#pragma once
+
+#include "core/collision/shapes.h"
+
+namespace blockstep {
+
+// Most vertices a supporting feature keeps; a hull face with more touches
+// at its support point only.
+inline constexpr int kMaxFeaturePoints = 64;
+
+struct PosedConvex {
+  const Shape* shape = nullptr;
+  ShapePose pose;
+  double radius = 0.0;  // sphere and capsule: their radius around the core
+
+  PosedConvex(const Shape& s, const ShapePose& p);
+  // The core's point farthest along `direction` (world; need not be unit).
+  Vec3 coreSupport(const Vec3& direction) const;
+  // Largest distance of the core from the pose's position.
+  double coreRadius() const;
+};
+
+// The shape's feature farthest along the unit `direction` (world): a
+// face's vertex loop (counter-clockwise seen along `direction`), an edge
+// (two points) or one point, on the shape's surface (radius included).
+// A face comes with its outward normal; an edge or a point with a zero
+// normal. Whatever the feature, it holds the shape's support point
+// along `direction`, so one point of it is exact.
+struct Feature {
+  Vec3 points[kMaxFeaturePoints];
+  int count = 0;
+  Vec3 normal = Vec3::Zero();
+};
+void supportingFeature(const PosedConvex& c, const Vec3& direction, Feature& out);
+
+}  // namespace blockstep

@@ -1,0 +1,230 @@
+// GJK/EPA and feature-clipped manifolds between convex shapes, against
+// closed forms and against the separating-axis path for boxes.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/collision/gjk_epa.h"
+#include "core/collision/narrowphase.h"
+
+namespace blockstep {
+namespace {
+
+constexpr double kMargin = 0.02;
+
+ShapePose at(const Vec3& position, const Quat& q = Quat::Identity()) {
+  return ShapePose{position, q.toRotationMatrix()};
+}
+
+Quat about(const Vec3& axis, double angle) {
+  return Quat(Eigen::AngleAxisd(angle, axis.normalized()));
+}
+
+double deepest(const ContactManifold& m) {
+  double s = kInf;
+  for (int i = 0; i < m.pointCount; ++i)
+    s = std::min(s, m.points[i].separation);
+  return s;
+}
+
+std::shared_ptr<const ConvexHull> boxHull(const Vec3& half) {
+  std::vector<Vec3> corners;
+  for (int c = 0; c < 8; ++c)
+    corners.push_back(Vec3(c & 1 ? half.x() : -half.x(), c & 2 ? half.y() : -half.y(),
+                           c & 4 ? half.z() : -half.z()));
+  return std::make_shared<const ConvexHull>(ConvexHull::fromPoints(corners));
+}
+
+// Depth and normal to 1e-6 relative, as the closed form gives them.
+void expectContact(const ContactManifold& m, int points, double separation, const Vec3& normal) {
+  ASSERT_EQ(m.pointCount, points);
+  EXPECT_NEAR(deepest(m), separation, 1e-6 * std::abs(separation) + 1e-12);
+  EXPECT_LT((m.normal - normal).norm(), 1e-6) << m.normal.transpose();
+}
+
+TEST(ConvexCollision, SpheresThroughGjkMatchTheClosedForm) {
+  const Shape a = Shape::sphere(0, 1.0), b = Shape::sphere(1, 0.5);
+  const Vec3 centre(1.2, 0.4, -0.3);
+  ContactManifold m;
+  collideConvex(a, at(Vec3::Zero()), b, at(centre), kMargin, m);
+  expectContact(m, 1, centre.norm() - 1.5, centre.normalized());
+  // Apart within the margin: a speculative point with its true gap.
+  const Vec3 near = centre.normalized() * 1.51;
+  collideConvex(a, at(Vec3::Zero()), b, at(near), kMargin, m);
+  expectContact(m, 1, 0.01, centre.normalized());
+  EXPECT_EQ(collideConvex(a, at(Vec3::Zero()), b, at(centre.normalized() * 1.6), kMargin, m), 0);
+}
+
+TEST(ConvexCollision, SphereAgainstBoxFaceAndEdgeMatchTheClosedForm) {
+  const Shape box = Shape::box(0, Vec3(0.5, 0.4, 0.3)), ball = Shape::sphere(1, 0.2);
+  ContactManifold m;
+  // Over the top face, 0.05 deep.
+  collideConvex(box, at(Vec3::Zero()), ball, at(Vec3(0.1, -0.2, 0.45)), kMargin, m);
+  expectContact(m, 1, -0.05, Vec3::UnitZ());
+  // Beside the edge along y at (0.5, *, 0.3): the normal points from the
+  // edge to the centre.
+  const Vec3 edge(0.5, 0.1, 0.3), offset = Vec3(1, 0, 1).normalized() * 0.15;
+  collideConvex(box, at(Vec3::Zero()), ball, at(edge + offset), kMargin, m);
+  expectContact(m, 1, 0.15 - 0.2, offset.normalized());
+  // Turned boxes agree with the fast path.
+  const Quat q = about(Vec3(1, 2, 3), 0.8);
+  const Vec3 c = q * Vec3(0.3, 0.1, 0.45);
+  ContactManifold fast;
+  collideBoxSphere(box, at(Vec3::Zero(), q), ball, at(c), kMargin, fast);
+  collideConvex(box, at(Vec3::Zero(), q), ball, at(c), kMargin, m);
+  expectContact(m, 1, fast.points[0].separation, fast.normal);
+}
+
+TEST(ConvexCollision, BoxOnBoxFaceGivesFourPointsLikeTheSeparatingAxisPath) {
+  const Shape lower = Shape::box(0, Vec3(1, 1, 0.5)), upper = Shape::box(1, Vec3(0.3, 0.2, 0.25));
+  const Quat turn = about(Vec3::UnitZ(), 0.4);
+  const ShapePose pl = at(Vec3::Zero()), pu = at(Vec3(0.1, 0.2, 0.74), turn);
+  ContactManifold gjk, sat;
+  collideConvex(lower, pl, upper, pu, kMargin, gjk);
+  collideBoxes(lower, pl, upper, pu, kMargin, sat);
+  expectContact(gjk, 4, -0.01, Vec3::UnitZ());
+  ASSERT_EQ(sat.pointCount, 4);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(gjk.points[i].separation, -0.01, 1e-12);
+    double closest = kInf;
+    for (int j = 0; j < 4; ++j)
+      closest = std::min(closest, (gjk.points[i].position - sat.points[j].position).norm());
+    EXPECT_LT(closest, 1e-9) << "GJK point " << i << " is not a SAT point";
+  }
+  // The same boxes as hulls: the same manifold.
+  const Shape hullLower = Shape::convex(0, boxHull(Vec3(1, 1, 0.5)));
+  const Shape hullUpper = Shape::convex(1, boxHull(Vec3(0.3, 0.2, 0.25)));
+  ContactManifold hulls;
+  collideConvex(hullLower, pl, hullUpper, pu, kMargin, hulls);
+  expectContact(hulls, 4, -0.01, Vec3::UnitZ());
+  // Apart by 5 mm: four speculative points at +5 mm, from GJK's distance.
+  collideConvex(lower, pl, upper, at(Vec3(0.1, 0.2, 0.755), turn), kMargin, gjk);
+  expectContact(gjk, 4, 0.005, Vec3::UnitZ());
+  EXPECT_NEAR(gjk.points[3].separation, 0.005, 1e-12);
+}
+
+TEST(ConvexCollision, CrossedBoxEdgesGiveOnePointAtTheClosedFormDepth) {
+  // A's top is an edge along x at height sqrt(1/2); B's bottom an edge
+  // along y at B's height minus sqrt(1/2): they cross, 30 mm deep.
+  const double h = std::sqrt(0.5);
+  const Shape a = Shape::box(0, Vec3(0.5, 0.5, 0.5)), b = Shape::box(1, Vec3(0.5, 0.5, 0.5));
+  const ShapePose pa = at(Vec3::Zero(), about(Vec3::UnitX(), kPi / 4));
+  const ShapePose pb = at(Vec3(0.05, -0.02, 2 * h - 0.03), about(Vec3::UnitY(), kPi / 4));
+  ContactManifold m;
+  collideConvex(a, pa, b, pb, kMargin, m);
+  expectContact(m, 1, -0.03, Vec3::UnitZ());
+  // The edges cross at A's edge (y = 0) under B's (x = 0.05), midway in depth.
+  EXPECT_LT((m.points[0].position - Vec3(0.05, 0, h - 0.015)).norm(), 1e-6);
+}
+
+TEST(ConvexCollision, CapsuleOnABoxLiesOnTwoPointsOrTipsOnOne) {
+  const double r = 0.1, length = 0.6;
+  const Shape box = Shape::box(0, Vec3(1, 1, 0.5)), capsule = Shape::capsule(1, r, length);
+  const Quat lying = about(Vec3::UnitY(), kPi / 2);  // axis along x
+  ContactManifold m;
+  collideConvex(box, at(Vec3::Zero()), capsule, at(Vec3(0.2, 0.1, 0.5 + r - 0.02), lying), kMargin,
+                m);
+  expectContact(m, 2, -0.02, Vec3::UnitZ());
+  EXPECT_NEAR(std::abs(m.points[0].position.x() - m.points[1].position.x()), length, 1e-9);
+  // Tipped by 20 degrees: the low end alone, at its closed-form depth.
+  const double tilt = 20.0 * kPi / 180.0;
+  const double centreHeight = 0.5 + r + 0.5 * length * std::sin(tilt) - 0.015;
+  collideConvex(box, at(Vec3::Zero()), capsule,
+                at(Vec3(0, 0, centreHeight), about(Vec3::UnitY(), kPi / 2 + tilt)), kMargin, m);
+  expectContact(m, 1, -0.015, Vec3::UnitZ());
+  // Through the plane path as well.
+  const Shape ground = Shape::plane(Vec3::UnitZ(), 0.5);
+  collideConvexPlane(ground, capsule, at(Vec3(0.2, 0.1, 0.5 + r - 0.02), lying), kMargin, m);
+  expectContact(m, 2, -0.02, Vec3::UnitZ());
+}
+
+TEST(ConvexCollision, CylinderOnAPlaneStandsOnItsCapOrTouchesAtItsRim) {
+  const double r = 0.3, length = 0.8;
+  const Shape ground = Shape::plane(Vec3::UnitZ(), 0.0), cylinder = Shape::cylinder(1, r, length);
+  ContactManifold m;
+  collideConvexPlane(ground, cylinder, at(Vec3(1, 2, 0.5 * length - 0.01)), kMargin, m);
+  expectContact(m, 4, -0.01, Vec3::UnitZ());
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(m.points[i].separation, -0.01, 1e-12);
+    EXPECT_NEAR((m.points[i].position - Vec3(1, 2, -0.005)).norm(), r, 1e-12);
+  }
+  // Tilted by 60 degrees: the lowest rim point, r sin + l/2 cos below the
+  // centre (its neighbours on the rim are beyond the margin).
+  const double tilt = kPi / 3;
+  const double low = r * std::sin(tilt) + 0.5 * length * std::cos(tilt);
+  collideConvexPlane(ground, cylinder, at(Vec3(0, 0, low - 0.012), about(Vec3::UnitX(), tilt)),
+                     kMargin, m);
+  expectContact(m, 1, -0.012, Vec3::UnitZ());
+  // On its side: the side line, two points.
+  collideConvexPlane(ground, cylinder, at(Vec3(0, 0, r - 0.004), about(Vec3::UnitX(), kPi / 2)),
+                     kMargin, m);
+  expectContact(m, 2, -0.004, Vec3::UnitZ());
+}
+
+TEST(ConvexCollision, CylinderOnABoxThroughEpaStandsOnFourPoints) {
+  const Shape box = Shape::box(0, Vec3(1, 1, 0.5)), cylinder = Shape::cylinder(1, 0.3, 0.8);
+  ContactManifold m;
+  collideConvex(box, at(Vec3::Zero()), cylinder, at(Vec3(0.1, 0, 0.5 + 0.4 - 0.01)), kMargin, m);
+  expectContact(m, 4, -0.01, Vec3::UnitZ());
+}
+
+TEST(ConvexCollision, DegenerateContactsGiveFiniteAnswers) {
+  ContactManifold m;
+  auto finite = [&m] {
+    bool ok = m.normal.allFinite() && std::abs(m.normal.norm() - 1.0) < 1e-9;
+    for (int i = 0; i < m.pointCount; ++i)
+      ok = ok && m.points[i].position.allFinite() && std::isfinite(m.points[i].separation);
+    return ok;
+  };
+  // Boxes exactly touching face to face.
+  const Shape a = Shape::box(0, Vec3(0.5, 0.5, 0.5)), b = Shape::box(1, Vec3(0.5, 0.5, 0.5));
+  EXPECT_EQ(collideConvex(a, at(Vec3::Zero()), b, at(Vec3(0, 0, 1)), kMargin, m), 4);
+  EXPECT_TRUE(finite());
+  EXPECT_NEAR(deepest(m), 0.0, 1e-12);
+  // Concentric spheres, and capsules whose segments cross.
+  const Shape s1 = Shape::sphere(0, 0.5), s2 = Shape::sphere(1, 0.3);
+  EXPECT_EQ(collideConvex(s1, at(Vec3::Zero()), s2, at(Vec3::Zero()), kMargin, m), 1);
+  EXPECT_TRUE(finite());
+  EXPECT_NEAR(deepest(m), -0.8, 1e-12);
+  const Shape c1 = Shape::capsule(0, 0.1, 1.0), c2 = Shape::capsule(1, 0.1, 1.0);
+  EXPECT_EQ(collideConvex(c1, at(Vec3::Zero()), c2, at(Vec3::Zero(), about(Vec3::UnitX(), 1.0)),
+                          kMargin, m),
+            1);
+  EXPECT_TRUE(finite());
+  // A needle hull through a box's corner, and a box inside a box.
+  std::vector<Vec3> needle = {Vec3(-1, 0, 0), Vec3(1, 0, 0), Vec3(0, 1e-3, 0), Vec3(0, 0, 1e-3)};
+  const Shape n =
+      Shape::convex(1, std::make_shared<const ConvexHull>(ConvexHull::fromPoints(needle)));
+  EXPECT_GE(collideConvex(a, at(Vec3::Zero()), n, at(Vec3(0.5, 0.5, 0.45)), kMargin, m), 1);
+  EXPECT_TRUE(finite());
+  const Shape small = Shape::box(1, Vec3(0.1, 0.1, 0.1));
+  EXPECT_GE(collideConvex(a, at(Vec3::Zero()), small, at(Vec3(0.05, 0, 0)), kMargin, m), 1);
+  EXPECT_TRUE(finite());
+  EXPECT_LT(deepest(m), -0.3);
+}
+
+TEST(ConvexCollision, GjkEndsExactlyOnPolytopesAndWithinTwentyStepsOnACylinder) {
+  const Shape box = Shape::box(0, Vec3(0.5, 0.4, 0.3));
+  const Shape hull = Shape::convex(1, boxHull(Vec3(0.2, 0.3, 0.1)));
+  const PosedConvex a(box, at(Vec3::Zero(), about(Vec3(1, 1, 0), 0.3)));
+  const PosedConvex b(hull, at(Vec3(1.5, 0.7, 0.2), about(Vec3(0, 1, 1), 1.1)));
+  const CoreDistance d = coreDistance(a, b);
+  ASSERT_FALSE(d.overlapping);
+  // The closest points lie on the shapes and their gap is the distance:
+  // every support along the gap's direction is no closer.
+  const Vec3 n = (d.pointB - d.pointA) / d.distance;
+  EXPECT_NEAR(a.coreSupport(n).dot(n), d.pointA.dot(n), 1e-12);
+  EXPECT_NEAR(b.coreSupport(-n).dot(n), d.pointB.dot(n), 1e-12);
+  EXPECT_LT(d.iterations, 10);
+  const Shape cylinder = Shape::cylinder(1, 0.3, 0.5);
+  const PosedConvex c(cylinder, at(Vec3(0.7, 0.8, 0.9), about(Vec3(1, 0, 1), 0.6)));
+  const CoreDistance e = coreDistance(a, c);
+  ASSERT_FALSE(e.overlapping);
+  const Vec3 m = (e.pointB - e.pointA) / e.distance;
+  EXPECT_NEAR(c.coreSupport(-m).dot(m), e.pointB.dot(m), 1e-6 * e.distance);
+  EXPECT_LE(e.iterations, 20);
+}
+
+}  // namespace
+}  // namespace blockstep

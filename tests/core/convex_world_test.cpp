@@ -1,0 +1,225 @@
+// The broad phase, and capsules, cylinders and hulls resting in a world.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/collision/broadphase.h"
+#include "core/collision/support.h"
+#include "support/test_world.h"
+
+namespace blockstep {
+namespace {
+
+Shape randomShape(std::mt19937& rng, BodyId body) {
+  std::uniform_real_distribution<double> size(0.05, 0.4);
+  switch (rng() % 5) {
+    case 0:
+      return Shape::sphere(body, size(rng));
+    case 1:
+      return Shape::capsule(body, size(rng) / 2, size(rng));
+    case 2:
+      return Shape::cylinder(body, size(rng) / 2, size(rng));
+    case 3:
+      return Shape::box(body, Vec3(size(rng), size(rng), size(rng)) / 2);
+    default: {
+      std::vector<Vec3> points;
+      std::normal_distribution<double> gauss(0.0, 0.1);
+      for (int i = 0; i < 12; ++i)
+        points.push_back(Vec3(gauss(rng), gauss(rng), gauss(rng)));
+      return Shape::convex(body,
+                           std::make_shared<const ConvexHull>(ConvexHull::fromPoints(points)));
+    }
+  }
+}
+
+TEST(BroadPhase, AllPairsAndSweepAndPruneFindTheSamePairsAsEveryBoxTestedWithEvery) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> place(-3.0, 3.0), angle(-kPi, kPi);
+  std::vector<Shape> shapes;
+  std::vector<ShapePose> poses;
+  for (int i = 0; i < 1000; ++i) {
+    shapes.push_back(randomShape(rng, 0));
+    const Quat q(Eigen::AngleAxisd(angle(rng), Vec3(place(rng), place(rng), 1.0).normalized()));
+    poses.push_back(ShapePose{Vec3(place(rng), place(rng), place(rng)), q.toRotationMatrix()});
+  }
+  shapes.push_back(Shape::plane(Vec3::UnitZ(), 0.0));
+  poses.push_back(ShapePose{Vec3::Zero(), Mat3::Identity()});
+  shapes[17].alive = false;
+  BroadPhase allPairs, sweep;
+  std::vector<Aabb> boxes(shapes.size());
+  std::vector<std::pair<int, int>> expected, a, b;
+  std::size_t total = 0;
+  for (int step = 0; step < 5; ++step) {
+    for (std::size_t i = 0; i < shapes.size(); ++i)
+      boxes[i] = shapeAabb(shapes[i], poses[i], 0.01);
+    expected.clear();
+    for (int i = 0; i < static_cast<int>(boxes.size()); ++i)
+      for (int j = i + 1; j < static_cast<int>(boxes.size()); ++j)
+        if (boxes[i].overlaps(boxes[j])) expected.emplace_back(i, j);
+    allPairs.findPairs(boxes, BroadPhaseMethod::AllPairs, a);
+    sweep.findPairs(boxes, BroadPhaseMethod::SweepAndPrune, b);
+    EXPECT_EQ(a, expected);
+    EXPECT_EQ(b, expected) << "step " << step;
+    total += expected.size();
+    // Move everything a little, as a step would: the sweep keeps its order.
+    for (ShapePose& p : poses)
+      p.position += Vec3(place(rng), place(rng), place(rng)) * 0.05;
+  }
+  EXPECT_GT(total, 5000u);  // the plane alone meets about half the shapes each step
+}
+
+TEST(BroadPhase, BoxesHoldTheirShapes) {
+  // Every support point of a shape, in any direction, lies in its box.
+  std::mt19937 rng(3);
+  std::normal_distribution<double> gauss;
+  for (int i = 0; i < 200; ++i) {
+    const Shape s = randomShape(rng, 0);
+    const Quat q = Quat(gauss(rng), gauss(rng), gauss(rng), gauss(rng)).normalized();
+    const ShapePose pose{Vec3(gauss(rng), gauss(rng), gauss(rng)), q.toRotationMatrix()};
+    const Aabb box = shapeAabb(s, pose, 0.0);
+    const PosedConvex c(s, pose);
+    for (int k = 0; k < 50; ++k) {
+      const Vec3 d = Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized();
+      const Vec3 p = c.coreSupport(d) + c.radius * d;
+      EXPECT_TRUE((p.array() >= box.lo.array() - 1e-12).all() &&
+                  (p.array() <= box.hi.array() + 1e-12).all())
+          << "shape kind " << static_cast<int>(s.kind);
+    }
+  }
+}
+
+// A body resting on the ground plane from `shape`, with mass from `mass`.
+struct Resting {
+  World world;
+  BodyId body;
+};
+
+void dropOnGround(Resting& r, const Shape& shape, const MassProperties& mass, const Vec3& position,
+                  const Quat& q) {
+  r.world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  BodyDesc d;
+  d.position = position;
+  d.orientation = q;
+  d.mass = mass.mass;
+  d.inertia = mass.inertia;
+  r.body = r.world.createBody(d);
+  Shape s = shape;
+  s.body = r.body;
+  r.world.addShape(s);
+}
+
+TEST(ConvexWorld, CapsuleLyingDownAndCylinderStandingUpRestWithoutRolling) {
+  Resting capsule;
+  dropOnGround(capsule, Shape::capsule(0, 0.1, 0.6), capsuleMass(2.0, 0.1, 0.6), Vec3(0, 0, 0.1),
+               Quat(Eigen::AngleAxisd(kPi / 2, Vec3::UnitY())));
+  Resting cylinder;
+  dropOnGround(cylinder, Shape::cylinder(0, 0.2, 0.5), cylinderMass(3.0, 0.2, 0.5),
+               Vec3(0, 0, 0.25), Quat::Identity());
+  for (Resting* r : {&capsule, &cylinder}) {
+    const Vec3 start = r->world.body(r->body).position;
+    test::stepN(r->world, 600, 1.0 / 60.0);  // 10 s
+    const Body& b = r->world.body(r->body);
+    EXPECT_LT((b.position - start).norm(), 5e-3);
+    EXPECT_LT(b.linearVelocity.norm(), 1e-3);
+    EXPECT_LT(b.angularVelocity.norm(), 1e-3);
+    ASSERT_EQ(r->world.contacts().size(), 1u);
+    EXPECT_EQ(r->world.contacts()[0].pointCount, r == &capsule ? 2 : 4);
+  }
+}
+
+TEST(ConvexWorld, BadShapesAreRefusedAndLeaveTheWorldAsItWas) {
+  World world;
+  const BodyId b = world.createBody(test::sphereBody(Vec3::Zero(), 1.0, 0.1));
+  EXPECT_THROW(world.addShape(Shape::capsule(b, -0.1, 1.0)), Error);
+  EXPECT_THROW(world.addShape(Shape::capsule(b, 0.1, std::nan(""))), Error);
+  EXPECT_THROW(world.addShape(Shape::cylinder(b, 0.1, 0.0)), Error);
+  EXPECT_THROW(world.addShape(Shape::convex(b, nullptr)), Error);
+  // A capsule of length 0 is a sphere, and is accepted.
+  EXPECT_EQ(world.addShape(Shape::capsule(b, 0.1, 0.0)), 0);
+}
+
+TEST(ConvexWorld, CylinderOnItsSideRollsDownAnIncline) {
+  // A solid cylinder rolling without slipping accelerates at 2/3 g sin.
+  World world;
+  const double slope = 10.0 * kPi / 180.0;
+  const Quat tilt(Eigen::AngleAxisd(slope, Vec3::UnitX()));
+  Shape ground = Shape::plane(tilt * Vec3::UnitZ(), 0.0);
+  ground.friction = 1.0;
+  world.addShape(ground);
+  BodyDesc d;
+  const MassProperties m = cylinderMass(1.0, 0.1, 0.3);
+  d.mass = m.mass;
+  d.inertia = m.inertia;
+  d.orientation = tilt * Quat(Eigen::AngleAxisd(kPi / 2, Vec3::UnitY()));  // axis across the slope
+  d.position = tilt * Vec3(0, 0, 0.1);
+  const BodyId b = world.createBody(d);
+  Shape s = Shape::cylinder(b, 0.1, 0.3);
+  s.friction = 1.0;
+  world.addShape(s);
+  test::stepN(world, 60, 1.0 / 60.0);  // 1 s
+  const double expected = 2.0 / 3.0 * 9.81 * std::sin(slope);
+  EXPECT_NEAR(world.body(b).linearVelocity.norm(), expected, 0.05 * expected);
+}
+
+TEST(ConvexWorld, PileOfHundredHullsSettlesAndRestsOnContactsAtTheirTrueDepth) {
+  World world;
+  SolverSettings settings = world.settings();
+  settings.substeps = 2;
+  world.setSettings(settings);
+  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  std::mt19937 rng(5);
+  std::normal_distribution<double> gauss(0.0, 0.06);
+  std::uniform_real_distribution<double> place(-0.6, 0.6);
+  std::vector<BodyId> bodies;
+  std::vector<std::shared_ptr<const ConvexHull>> hulls;
+  for (int i = 0; i < 100; ++i) {
+    std::vector<Vec3> points;
+    for (int k = 0; k < 10; ++k)
+      points.push_back(Vec3(gauss(rng), gauss(rng), gauss(rng)));
+    auto hull = std::make_shared<const ConvexHull>(ConvexHull::fromPoints(points));
+    const MassProperties m = hullMass(*hull, 500.0);
+    // The body's origin at the hull's centre of mass.
+    std::vector<Vec3> centred = hull->vertices();
+    for (Vec3& v : centred)
+      v -= m.centre;
+    hull = std::make_shared<const ConvexHull>(ConvexHull::fromPoints(centred));
+    BodyDesc d;
+    d.position = Vec3(place(rng), place(rng), 0.2 + 0.15 * i / 4);
+    d.mass = m.mass;
+    d.inertia = m.inertia;
+    const BodyId b = world.createBody(d);
+    world.addShape(Shape::convex(b, hull));
+    bodies.push_back(b);
+    hulls.push_back(hull);
+  }
+  test::stepN(world, 480, 1.0 / 60.0);  // 8 s
+  double fastest = 0.0, meanSpeed = 0.0;
+  for (BodyId b : bodies) {
+    fastest = std::max(fastest, world.body(b).linearVelocity.norm());
+    meanSpeed += world.body(b).linearVelocity.norm() / bodies.size();
+  }
+  EXPECT_LT(meanSpeed, 0.005) << "the pile still moves";
+  EXPECT_LT(fastest, 0.05);
+  // Each body's ground contact reports the depth of its lowest vertex
+  // (measured after the step moved it by at most a few tenths of a mm).
+  int grounded = 0;
+  for (const ContactManifold& m : world.contacts()) {
+    if (m.bodyA != kWorldBody) continue;
+    const std::size_t i = static_cast<std::size_t>(m.bodyB - bodies.front());
+    const Body& body = world.body(m.bodyB);
+    double lowest = kInf, reported = kInf;
+    for (const Vec3& v : hulls[i]->vertices())
+      lowest = std::min(lowest, (body.position + body.orientation * v).z());
+    for (int k = 0; k < m.pointCount; ++k)
+      reported = std::min(reported, m.points[k].separation);
+    EXPECT_NEAR(reported, lowest, 5e-4) << "body " << m.bodyB;
+    // The depth left is the solver's under a load (the slop is 5 mm).
+    EXPECT_GT(lowest, -0.015) << "body " << m.bodyB;
+    ++grounded;
+  }
+  EXPECT_GT(grounded, 40);
+}
+
+}  // namespace
+}  // namespace blockstep
