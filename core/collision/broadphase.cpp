@@ -31,9 +31,8 @@ Aabb shapeAabb(const Shape& s, const ShapePose& pose, double grow) {
       half = R.cwiseAbs() * s.halfExtents;
       break;
     case Shape::Kind::Convex: {
-      Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
-      for (const Vec3& v : s.hull->vertices())
-        lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+      const Vec3& lo = s.hull->localMin();
+      const Vec3& hi = s.hull->localMax();
       centre += R * (0.5 * (lo + hi));
       half = R.cwiseAbs() * (0.5 * (hi - lo));
       break;

@@ -300,8 +300,12 @@ ConvexHull ConvexHull::fromPoints(const std::vector<Vec3>& points, double tolera
   const int euler =
       static_cast<int>(hull.vertices_.size()) - edgeEnds / 2 + static_cast<int>(hull.faces_.size());
   if (euler != 2) throw Error("convex hull: build failed (not a closed surface)");
-  for (const Vec3& v : hull.vertices_)
+  hull.localMin_ = hull.localMax_ = hull.vertices_[0];
+  for (const Vec3& v : hull.vertices_) {
     hull.boundingRadius_ = std::max(hull.boundingRadius_, v.norm());
+    hull.localMin_ = hull.localMin_.cwiseMin(v);
+    hull.localMax_ = hull.localMax_.cwiseMax(v);
+  }
   return hull;
 }
 

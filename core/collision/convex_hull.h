@@ -41,12 +41,16 @@ class ConvexHull {
   int supportFace(const Vec3& direction) const;
   // Largest distance of a vertex from the origin of the hull's frame.
   double boundingRadius() const { return boundingRadius_; }
+  // The vertices' box in the hull's frame (the broad phase turns it each step).
+  const Vec3& localMin() const { return localMin_; }
+  const Vec3& localMax() const { return localMax_; }
 
  private:
   std::vector<Vec3> vertices_;
   std::vector<Face> faces_;
   std::vector<int> faceVertices_;
   double boundingRadius_ = 0.0;
+  Vec3 localMin_ = Vec3::Zero(), localMax_ = Vec3::Zero();
 };
 
 // The mass properties of the solid hull at `density` (kg/m^3): volume,

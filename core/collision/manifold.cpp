@@ -117,15 +117,19 @@ int clipToSides(const Vec3* incident, int count, const Vec3* sideNormal, const d
 
 }  // namespace
 
-int manifoldFromFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n,
-                         const Vec3& surfacePointA, double separation, double margin,
-                         ContactManifold& m) {
+int addReducedPoints(ContactManifold& m, const Vec3* pos, const double* sep, int n) {
+  int keep[4];
+  const int k = reduceToFour(pos, sep, n, keep);
+  for (int i = 0; i < k; ++i)
+    addManifoldPoint(m, pos[keep[i]], sep[keep[i]], 0);
+  return k;
+}
+
+int clipFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n, double margin,
+                 ContactManifold& m) {
   m.normal = n;
   m.pointCount = 0;
-  auto onePoint = [&] {
-    addManifoldPoint(m, surfacePointA, separation, 0);
-    return 1;
-  };
+  auto onePoint = [] { return 0; };  // the caller's single point
   Feature featureA, featureB;
   supportingFeature(a, n, featureA);
   supportingFeature(b, -n, featureB);
@@ -175,11 +179,7 @@ int manifoldFromFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3&
     sep[kept++] = s;
   }
   if (kept == 0) return onePoint();
-  int keep[4];
-  const int k = reduceToFour(pos, sep, kept, keep);
-  for (int i = 0; i < k; ++i)
-    addManifoldPoint(m, pos[keep[i]], sep[keep[i]], 0);
-  return k;
+  return addReducedPoints(m, pos, sep, kept);
 }
 
 }  // namespace blockstep

@@ -19,16 +19,18 @@ void addManifoldPoint(ContactManifold& m, const Vec3& surfacePointA, double sepa
 // one adding most area (largest quad). Writes their indices to `keep`.
 int reduceToFour(const Vec3* pos, const double* sep, int n, int* keep);
 
+// Adds the (at most four, by reduceToFour) points of n candidates given
+// on A's surface, without feature ids. Returns how many were added.
+int addReducedPoints(ContactManifold& m, const Vec3* pos, const double* sep, int n);
+
 // The manifold of two convex shapes touching along the unit normal `n`
-// (from A toward B) with separation `separation` at `surfacePointA`: the
-// features of A along n and of B along -n; the face more along n is the
-// reference, the other feature is clipped to the reference's sides, and
-// each clipped point's separation is measured along n to the reference's
-// plane. Points farther than `margin` are dropped. A point feature, or
-// two features both far from the normal (edge against edge), give the one
-// point given.
-int manifoldFromFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n,
-                         const Vec3& surfacePointA, double separation, double margin,
-                         ContactManifold& m);
+// (from A toward B): the features of A along n and of B along -n; the face
+// more along n is the reference, the other feature is clipped to the
+// reference's sides, and each clipped point's separation is measured along
+// n to the reference's plane. Points farther than `margin` are dropped.
+// Returns 0, leaving the single deepest point to the caller, when a
+// feature is a point or both are far from the normal (edge against edge).
+int clipFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n, double margin,
+                 ContactManifold& m);
 
 }  // namespace blockstep

@@ -242,36 +242,41 @@ int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const Sha
   m.pointCount = 0;
   const PosedConvex A(a, pa), B(b, pb);
   const CoreDistance apart = coreDistance(A, B);
-  Vec3 n;
-  double separation;
-  Vec3 surfaceA;
   if (!apart.overlapping) {
-    separation = apart.distance - A.radius - B.radius;
+    const double separation = apart.distance - A.radius - B.radius;
     if (separation > margin) return 0;
-    n = (apart.pointB - apart.pointA) / apart.distance;
-    surfaceA = apart.pointA + A.radius * n;
-  } else if (const CorePenetration deep = corePenetration(A, B); deep.found) {
-    n = deep.normal;
-    separation = -deep.depth - A.radius - B.radius;
-    // libccd's position is a blend of the support points of EPA's last
-    // face, off the contact on an edge crossing. The witness point comes
-    // from GJK instead, with B moved just clear along the normal.
-    PosedConvex clear = B;
-    const double gap = 1e-3 * (A.coreRadius() + B.coreRadius());
-    clear.pose.position += (deep.depth + gap) * n;
-    const CoreDistance witness = coreDistance(A, clear);
-    surfaceA = witness.overlapping ? Vec3(deep.position + (0.5 * deep.depth + A.radius) * n)
-                                   : Vec3(witness.pointA + A.radius * n);
-  } else {
+    const Vec3 n = (apart.pointB - apart.pointA) / apart.distance;
+    if (clipFeatures(A, B, n, margin, m) > 0) return m.pointCount;
+    addManifoldPoint(m, apart.pointA + A.radius * n, separation, 0);
+    return 1;
+  }
+  const CorePenetration deep = corePenetration(A, B);
+  if (!deep.found) {
     // Cores just touching (libccd sees no overlap) or in a flat overlap
     // EPA cannot expand (crossing capsule segments): the radii are the
     // depth, along the line of centres.
     const Vec3 d = pb.position - pa.position;
-    n = d.squaredNorm() > 0.0 ? Vec3(d.normalized()) : Vec3::UnitZ();
-    separation = -A.radius - B.radius;
-    surfaceA = apart.pointA + A.radius * n;
+    const Vec3 n = d.squaredNorm() > 0.0 ? Vec3(d.normalized()) : Vec3::UnitZ();
+    if (clipFeatures(A, B, n, margin, m) > 0) return m.pointCount;
+    addManifoldPoint(m, apart.pointA + A.radius * n, -A.radius - B.radius, 0);
+    return 1;
   }
-  return manifoldFromFeatures(A, B, n, surfaceA, separation, margin, m);
+  const Vec3& n = deep.normal;
+  const double separation = -deep.depth - A.radius - B.radius;
+  if (clipFeatures(A, B, n, margin, m) > 0) return m.pointCount;
+  // One point. libccd's position is a blend of the support points of
+  // EPA's last face, off the contact on an edge crossing (0.11 m on the
+  // crossed-edges test); the witness comes from GJK instead, with B moved
+  // just clear along the normal.
+  PosedConvex clear = B;
+  const double gap = 1e-3 * (A.coreRadius() + B.coreRadius());
+  clear.pose.position += (deep.depth + gap) * n;
+  const CoreDistance witness = coreDistance(A, clear);
+  const Vec3 surfaceA = witness.overlapping
+                            ? Vec3(deep.position + (0.5 * deep.depth + A.radius) * n)
+                            : Vec3(witness.pointA + A.radius * n);
+  addManifoldPoint(m, surfaceA, separation, 0);
+  return 1;
 }
 
 int collideConvexPlane(const Shape& plane, const Shape& shape, const ShapePose& ps, double margin,
@@ -298,11 +303,7 @@ int collideConvexPlane(const Shape& plane, const Shape& shape, const ShapePose& 
     addManifoldPoint(m, deepest - deepestSeparation * n, deepestSeparation, 0);
     return 1;
   }
-  int keep[4];
-  const int k = reduceToFour(pos, sep, count, keep);
-  for (int i = 0; i < k; ++i)
-    addManifoldPoint(m, pos[keep[i]], sep[keep[i]], 0);
-  return k;
+  return addReducedPoints(m, pos, sep, count);
 }
 
 }  // namespace blockstep

@@ -40,20 +40,10 @@ struct Shape {
   }
   // `length` is the cylinder part, without the caps (ODE's convention).
   static Shape capsule(BodyId body, double radius, double length) {
-    Shape s;
-    s.kind = Kind::Capsule;
-    s.body = body;
-    s.radius = radius;
-    s.halfLength = 0.5 * length;
-    return s;
+    return alongZ(Kind::Capsule, body, radius, length);
   }
   static Shape cylinder(BodyId body, double radius, double length) {
-    Shape s;
-    s.kind = Kind::Cylinder;
-    s.body = body;
-    s.radius = radius;
-    s.halfLength = 0.5 * length;
-    return s;
+    return alongZ(Kind::Cylinder, body, radius, length);
   }
   static Shape convex(BodyId body, std::shared_ptr<const ConvexHull> hull) {
     Shape s;
@@ -74,6 +64,16 @@ struct Shape {
     s.kind = Kind::Plane;
     s.planeNormal = normal;
     s.planeOffset = offset;
+    return s;
+  }
+
+ private:
+  static Shape alongZ(Kind kind, BodyId body, double radius, double length) {
+    Shape s;
+    s.kind = kind;
+    s.body = body;
+    s.radius = radius;
+    s.halfLength = 0.5 * length;
     return s;
   }
 };
