@@ -20,6 +20,9 @@ struct CollisionSettings {
   // feature clipping like every other convex pair.
   bool boxBoxBySat = true;
   BroadPhaseMethod broadPhase = BroadPhaseMethod::Automatic;
+  // Collide before every sub-step (SolverSettings::substeps) rather than
+  // once per step: contacts follow the bodies at the sub-step's rate.
+  bool everySubstep = false;
   // Every manifold starts from this surface; friction mixes as
   // sqrt(muA muB) and restitution as max(eA, eB) of the two shapes.
   // Rigid normals (CFM 0: ODE's CFM is a compliance in m/N, so heavy

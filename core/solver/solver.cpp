@@ -69,7 +69,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   const auto start = Clock::now();
   const int substeps = std::max(1, s.substeps);
   const double h = in.h / substeps;
-  stepSize_ = in.h;
+  stepSize_ = in.penetrationStep > 0.0 ? in.penetrationStep : in.h;
 
   stats.substeps = substeps;
   stats.iterations = 0;
@@ -998,9 +998,11 @@ void Solver::finish(const StepInput& in, StepStats& stats) {
       stats.brokenJoints.push_back(blk.joint);
     }
   }
-  for (Body& b : in.bodies) {
-    b.force.setZero();
-    b.torque.setZero();
+  if (in.clearForces) {
+    for (Body& b : in.bodies) {
+      b.force.setZero();
+      b.torque.setZero();
+    }
   }
   stats.islands = islandCount_;
   stats.blocks = static_cast<int>(blocks_.size());

@@ -26,6 +26,13 @@ struct StepInput {
   const Body& worldBody;                   // the static frame behind kWorldBody
   Vec3 gravity;
   double h;  // the whole step, s
+  // The step whose rate caps how fast contacts push out of penetration
+  // (Solver::penetrationRate): the caller's whole step when it steps in
+  // parts (collision every sub-step); 0: h.
+  double penetrationStep = 0.0;
+  // Clear the bodies' force and torque accumulators after the step; a
+  // caller stepping in parts keeps them until its last part.
+  bool clearForces = true;
 };
 
 class Solver {

@@ -133,6 +133,8 @@ class World {
   void prepareContacts();
   void carryContactPoints();
   void restoreRunaways();
+  void keepContactsForNextStep();
+  void stepCollidingEachSubstep(double h);
 
   struct Saved {
     Vec3 x, v, w;
@@ -160,6 +162,12 @@ class World {
   SolverSettings settings_;
   Solver solver_;
   StepStats stats_;
+  // Collision every sub-step (stepCollidingEachSubstep): the contacts the
+  // caller added, one part's stats, and the bodies held still after the
+  // guard caught them in an earlier part, with their own type.
+  std::vector<ContactManifold> callerContacts_;
+  StepStats partStats_;
+  std::vector<std::pair<BodyId, BodyType>> heldTypes_;
   double lastStep_ = 0.0;
   int liveBodies_ = 0;
   int liveJoints_ = 0;

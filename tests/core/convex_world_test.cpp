@@ -221,5 +221,59 @@ TEST(ConvexWorld, PileOfHundredHullsSettlesAndRestsOnContactsAtTheirTrueDepth) {
   EXPECT_GT(grounded, 40);
 }
 
+// A ball thrown at 6 m/s against a wall moves 0.1 m a frame at 60 Hz,
+// five times the 20 mm margin: colliding once a frame, it is 80 mm off the
+// wall at one frame's start (no contact yet) and 20 mm inside it by the
+// next. Colliding every sub-step (10 mm each) the speculative contact
+// stops it at the wall.
+double deepestIntoWall(bool everySubstep) {
+  World world;
+  world.setGravity(Vec3::Zero());
+  SolverSettings settings = world.settings();
+  settings.substeps = 10;
+  world.setSettings(settings);
+  world.collisionSettings().everySubstep = everySubstep;
+  const double face = 0.33;  // the wall's face, x
+  Shape wall = Shape::box(kWorldBody, Vec3(0.1, 1.0, 1.0));
+  wall.localPosition = Vec3(face + 0.1, 0, 0);
+  world.addShape(wall);
+  const double r = 0.05;
+  const BodyId ball = world.createBody(test::sphereBody(Vec3::Zero(), 1.0, r));
+  world.addShape(Shape::sphere(ball, r));
+  world.setLinearVelocity(ball, Vec3(6.0, 0, 0));
+  double deepest = 0.0;
+  for (int frame = 0; frame < 30; ++frame) {
+    world.step(1.0 / 60.0);
+    deepest = std::max(deepest, world.body(ball).position.x() + r - face);
+  }
+  EXPECT_LT(world.body(ball).linearVelocity.x(), 0.05) << "the ball should stop at the wall";
+  EXPECT_GT(world.body(ball).linearVelocity.x(), -0.5) << "and not bounce off it";
+  return deepest;
+}
+
+TEST(ConvexWorld, CollidingEverySubstepStopsAFastBallAtTheWall) {
+  EXPECT_GT(deepestIntoWall(false), 0.015);
+  EXPECT_LT(deepestIntoWall(true), 1e-3);
+}
+
+TEST(ConvexWorld, CollidingEverySubstepAppliesForcesOverTheWholeStep) {
+  World world;
+  world.setGravity(Vec3(0, 0, -9.81));
+  SolverSettings settings = world.settings();
+  settings.substeps = 4;
+  world.setSettings(settings);
+  world.collisionSettings().everySubstep = true;
+  world.addShape(Shape::plane(Vec3::UnitZ(), -10.0));
+  const BodyId b = world.createBody(test::sphereBody(Vec3(0, 0, 1), 2.0, 0.1));
+  world.addShape(Shape::sphere(b, 0.1));
+  world.addForce(b, Vec3(3.0, 0, 0));
+  const double h = 0.02;
+  world.step(h);
+  EXPECT_NEAR(world.body(b).linearVelocity.x(), 3.0 / 2.0 * h, 1e-12);
+  EXPECT_NEAR(world.body(b).linearVelocity.z(), -9.81 * h, 1e-12);
+  EXPECT_TRUE(world.body(b).force.isZero()) << "cleared once the step is over";
+  EXPECT_EQ(world.lastStepStats().substeps, 4);
+}
+
 }  // namespace
 }  // namespace blockstep
