@@ -285,6 +285,8 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeSte
   switch (outcome) {
     case StepOutcome::Stepped: {
       state.stepper = dBlockStepperBlockstep;
+      if (!bridge.collisionNote().empty())
+        sayOnce(state, w, bridge.collisionNote(), "those geoms are left out of it");
       // The program's moved callbacks, outside the lock (they may call
       // ODE, even destroy bodies: each is looked up again before its call).
       static thread_local std::vector<dBodyID> moved;
@@ -451,6 +453,23 @@ void dWorldSetBlockRecordResiduals(dWorldID w, int on) {
   explicitSettings(w).recordResiduals = on != 0;
 }
 
+void dWorldSetBlockCollision(dWorldID w, dSpaceID space, const dSurfaceParameters* surface,
+                             int flags) {
+  if (space && !surface) {
+    say("dWorldSetBlockCollision: a space needs a contact surface; call ignored");
+    return;
+  }
+  if (flags & ~dBlockCollideEverySubstep) {
+    say("dWorldSetBlockCollision: unknown flags %#x; call ignored", unsigned(flags));
+    return;
+  }
+  std::lock_guard lock(Registry::instance().mutex());
+  BridgeSettings& s = bridgeFor(w).settings();
+  s.collisionSpace = space;
+  s.collisionSurface = space ? *surface : dSurfaceParameters{};
+  s.collideEverySubstep = (flags & dBlockCollideEverySubstep) != 0;
+}
+
 int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* out) {
   const WorldState* state = worldStates().find(w);
   const ode::WorldRecord* record = Registry::instance().world(w);
@@ -467,6 +486,7 @@ int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* out) {
     out->residualCount = static_cast<int>(s.residuals.size());
     out->solveSeconds = s.solveSeconds;
     out->stepSeconds = s.stepSeconds;
+    out->collideSeconds = s.collideSeconds;
     out->handedToOde = state->handedToOde;
   }
   return 1;

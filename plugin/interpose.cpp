@@ -6,6 +6,7 @@
 // non-positive mass) is refused here with a message, and the world stays as it was.
 #include <cmath>
 
+#include "adapters/ode/geom_mapping.h"
 #include "adapters/ode/registry.h"
 #include "plugin/ab_mode.h"
 #include "plugin/plugin_state.h"
@@ -97,6 +98,31 @@ void dWorldDestroy(dWorldID w) {
   real_dWorldDestroy(w);  // calls dBodyDestroy (ours) for each body
   Registry::instance().worldDestroyed(w);
   forgetWorld(w);
+}
+
+// ---------------------------------------------------------------- geoms
+// A convex geom's points, which ODE keeps no copy of and has no getter
+// for: blockstep's collision builds the geom's hull from them.
+
+dGeomID dCreateConvex(dSpaceID space, const dReal* planes, unsigned planeCount, const dReal* points,
+                      unsigned pointCount, const unsigned* polygons) {
+  BLOCKSTEP_REAL(dCreateConvex);
+  dGeomID g = real_dCreateConvex(space, planes, planeCount, points, pointCount, polygons);
+  blockstep::ode::ConvexGeoms::instance().remember(g, points, pointCount);
+  return g;
+}
+
+void dGeomSetConvex(dGeomID g, const dReal* planes, unsigned planeCount, const dReal* points,
+                    unsigned pointCount, const unsigned* polygons) {
+  BLOCKSTEP_REAL(dGeomSetConvex);
+  real_dGeomSetConvex(g, planes, planeCount, points, pointCount, polygons);
+  blockstep::ode::ConvexGeoms::instance().remember(g, points, pointCount);
+}
+
+void dGeomDestroy(dGeomID g) {
+  BLOCKSTEP_REAL(dGeomDestroy);
+  blockstep::ode::ConvexGeoms::instance().forget(g);
+  real_dGeomDestroy(g);
 }
 
 // ---------------------------------------------------------------- bodies

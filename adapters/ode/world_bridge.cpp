@@ -1,5 +1,7 @@
 #include "adapters/ode/world_bridge.h"
 
+#include "adapters/ode/geom_mapping.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -149,6 +151,7 @@ StepOutcome WorldBridge::step(const WorldRecord& record, double h, OdeStepper st
   wakeIslands(record);
   try {
     syncJoints(record);
+    syncShapes();
     dVector3 g;
     dWorldGetGravity(world_, g);
     core_.setGravity(vec(g));
@@ -162,6 +165,72 @@ StepOutcome WorldBridge::step(const WorldRecord& record, double h, OdeStepper st
   writeFeedback(record);
   writeContactFeedback();
   return StepOutcome::Stepped;
+}
+
+// The collision space's geoms as core shapes, made, updated (a program may
+// move a static geom or resize one between steps) and removed (geoms
+// destroyed, disabled or taken out of the space) to match ODE's.
+void WorldBridge::syncShapes() {
+  CollisionSettings& collision = core_.collisionSettings();
+  collision.everySubstep = settings_.collideEverySubstep;
+  geoms_.forEach([](dGeomID, MappedGeom& m) { m.seen = false; });
+  collisionNote_.clear();
+  if (settings_.collisionSpace) {
+    dContact c{};
+    c.surface = settings_.collisionSurface;
+    c.geom.normal[2] = 1.0;
+    const MappedContact mapped = mapContact(c, kWorldBody, kWorldBody, contactParams_);
+    if (mapped.unsupported) throw Error(std::string("collision surface: ") + mapped.unsupported);
+    collision.surface = mapped.manifold.surface;
+    collision.surface.softness =
+        contactSoftness(collision.surface.softness.erp, collision.surface.softness.cfm);
+    collision.collideConnected = false;  // as ODE programs skip dAreConnected pairs
+    // The shapes carry the surface's friction and bounce: the core mixes
+    // them per pair (sqrt(mu mu) and max(e, e) give the surface's own).
+    Shape surfaceShape;
+    surfaceShape.friction = collision.surface.mu;
+    surfaceShape.restitution = collision.surface.restitution;
+    syncSpace(settings_.collisionSpace, surfaceShape);
+  }
+  goneGeoms_.clear();
+  geoms_.forEach([&](dGeomID g, MappedGeom& m) {
+    if (m.seen) return;
+    if (m.id >= 0 && core_.shapes()[m.id].alive) core_.removeShape(m.id);
+    goneGeoms_.push_back(g);
+  });
+  for (dGeomID g : goneGeoms_)
+    geoms_.erase(g);
+}
+
+void WorldBridge::syncSpace(dSpaceID space, const Shape& surfaceShape) {
+  const int n = dSpaceGetNumGeoms(space);
+  for (int i = 0; i < n; ++i) {
+    const dGeomID g = dSpaceGetGeom(space, i);
+    if (dGeomIsSpace(g)) {
+      syncSpace(reinterpret_cast<dSpaceID>(g), surfaceShape);
+      continue;
+    }
+    if (!dGeomIsEnabled(g)) continue;
+    MappedGeom& m = geoms_[g];
+    m.seen = true;
+    Shape shape = surfaceShape;
+    std::string why;
+    if (!shapeOfGeom(g, coreBody(dGeomGetBody(g)), shape, why)) {
+      if (collisionNote_.find(why) == std::string::npos) {
+        collisionNote_ +=
+            (collisionNote_.empty() ? "blockstep's collision has no shape for " : ", ");
+        collisionNote_ += why;
+      }
+      if (m.id >= 0 && core_.shapes()[m.id].alive) core_.removeShape(m.id);
+      m.id = -1;
+      continue;
+    }
+    if (m.id >= 0 && core_.shapes()[m.id].alive) {
+      core_.replaceShape(m.id, shape);
+    } else {
+      m.id = core_.addShape(shape);
+    }
+  }
 }
 
 bool WorldBridge::readAll(const WorldRecord& record) {

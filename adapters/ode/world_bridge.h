@@ -64,6 +64,16 @@ struct BridgeSettings {
   // with two carried corners 13.6 mm above the ground (cause not found).
   double contactPersistence = 0.005;
 
+  // blockstep's own collision (dWorldSetBlockCollision): the geoms of this
+  // space, and of the spaces inside it, become core shapes that the core
+  // collides (GJK/EPA, manifolds of up to four points, speculative
+  // contacts within CollisionSettings::margin) each step, or each
+  // sub-step, with `collisionSurface` as ODE would read it from a contact.
+  // The contact joints the program makes are solved as well. nullptr: off.
+  dSpaceID collisionSpace = nullptr;
+  dSurfaceParameters collisionSurface{};
+  bool collideEverySubstep = false;
+
   static SolverSettings fromQuickStepIterations(int iterations);
 };
 
@@ -102,6 +112,9 @@ class WorldBridge {
   BridgeSettings& settings() { return settings_; }
   const StepStats& stats() const { return core_.lastStepStats(); }
   const World& core() const { return core_; }
+  // Geoms of the collision space blockstep leaves out of its collision
+  // (no core shape for their class), or "".
+  const std::string& collisionNote() const { return collisionNote_; }
 
  private:
   struct BodySleep {  // ODE's auto-disable state of one body
@@ -137,6 +150,8 @@ class WorldBridge {
   void wakeIslands(const WorldRecord& record);
   void syncBodies(const WorldRecord& record);
   void syncJoints(const WorldRecord& record);
+  void syncShapes();
+  void syncSpace(dSpaceID space, const Shape& surfaceShape);
   void handBackRunaways(const WorldRecord& record);
   bool handedBack(dBodyID body);
   dBodyID odeBody(const WorldRecord& record, BodyId id);
@@ -158,6 +173,13 @@ class WorldBridge {
   BridgeSettings settings_;
   PointerMap<dBodyID, MappedBody> bodies_;
   PointerMap<dJointID, MappedJoint> joints_;
+  struct MappedGeom {
+    ShapeId id = -1;  // -1: no core shape (its class has none)
+    bool seen = false;
+  };
+  PointerMap<dGeomID, MappedGeom> geoms_;
+  std::vector<dGeomID> goneGeoms_;
+  std::string collisionNote_;
   // Per step, reused.
   std::vector<JointRead> reads_;  // one per record.joints entry (contacts: unused)
   std::vector<ContactManifold> pointContacts_, manifolds_;

@@ -44,6 +44,11 @@ struct Overrides {
   std::optional<int> islandRows;      // island blocks up to this many joint rows (0: off)
   std::optional<double> persistence;  // contact persistence, m (0: off)
   std::optional<double> tolerance;    // stop sweeping below this residual, m/s (0: off)
+  // Who collides: the scene's dSpaceCollide once a frame (unset), or
+  // blockstep's own collision (dWorldSetBlockCollision) once a frame or
+  // before every sub-step.
+  enum class Collision { Ode, Core, CoreEverySubstep };
+  std::optional<Collision> collision;
 };
 
 struct Stepper {

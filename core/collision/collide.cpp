@@ -69,6 +69,7 @@ void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>
     const Shape& s1 = shapes[i];
     const Shape& s2 = shapes[j];
     if (s1.body == s2.body) continue;
+    if (!(s1.categoryBits & s2.collideBits) && !(s2.categoryBits & s1.collideBits)) continue;
     // Only dynamic bodies are pushed: two immovable shapes never collide.
     const bool dyn1 = s1.body != kWorldBody && bodies[s1.body].isDynamic();
     const bool dyn2 = s2.body != kWorldBody && bodies[s2.body].isDynamic();

@@ -29,6 +29,10 @@ struct Shape {
   double planeOffset = 0.0;
   double friction = 0.6;
   double restitution = 0.0;
+  // Collision filter, ODE's rule: two shapes collide when the category of
+  // either has a bit in the other's collide mask.
+  std::uint64_t categoryBits = ~std::uint64_t{0};
+  std::uint64_t collideBits = ~std::uint64_t{0};
   bool alive = true;
 
   static Shape sphere(BodyId body, double radius) {

@@ -447,7 +447,7 @@ void World::step(double h) {
   if (collision_.everySubstep && settings_.substeps > 1) {
     stepCollidingEachSubstep(h);
   } else {
-    collide();
+    stats_.collideSeconds = timedCollide();
     prepareContacts();
     solver_.step(StepInput{bodies_, joints_, contacts_, worldBody_, gravity_, h}, settings_,
                  stats_);
@@ -483,7 +483,7 @@ void World::stepCollidingEachSubstep(double h) {
   callerContacts_.assign(contacts_.begin(), contacts_.end());
   stats_.substeps = parts;
   stats_.iterations = 0;
-  stats_.solveSeconds = stats_.stepSeconds = 0.0;
+  stats_.collideSeconds = stats_.solveSeconds = stats_.stepSeconds = 0.0;
   stats_.residuals.clear();
   stats_.brokenJoints.clear();
   stats_.runaways.clear();
@@ -492,7 +492,7 @@ void World::stepCollidingEachSubstep(double h) {
   heldTypes_.clear();
   for (int k = 0; k < parts; ++k) {
     if (k > 0) contacts_.assign(callerContacts_.begin(), callerContacts_.end());
-    collide();
+    const double collideSeconds = timedCollide();
     prepareContacts();
     StepInput in{bodies_, joints_, contacts_, worldBody_, gravity_, h / parts};
     in.penetrationStep = h;
@@ -500,6 +500,7 @@ void World::stepCollidingEachSubstep(double h) {
     solver_.step(in, part, partStats_);
     keepContactsForNextStep();
 
+    stats_.collideSeconds += collideSeconds;
     stats_.iterations += partStats_.iterations;
     stats_.solveSeconds += partStats_.solveSeconds;
     stats_.stepSeconds += partStats_.stepSeconds;

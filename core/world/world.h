@@ -81,7 +81,11 @@ class World {
   // with the joints; contacts() lists the last step's with their impulses,
   // sorted by body pair.
   ShapeId addShape(const Shape& shape);
+  // Puts `shape` in place of shape `id` (a caller mirroring another
+  // engine's geoms updates them this way); checked as addShape checks.
+  void replaceShape(ShapeId id, const Shape& shape);
   void removeShape(ShapeId id);
+  const std::vector<Shape>& shapes() const { return shapes_; }
   void addContact(const ContactManifold& manifold);
   const std::vector<ContactManifold>& contacts() const { return previousContacts_; }
   CollisionSettings& collisionSettings() { return collision_; }
@@ -128,8 +132,10 @@ class World {
   const Joint& liveJoint(JointId id) const;
   const Body& endpoint(BodyId id) const;
   void validateSettings(const SolverSettings& s) const;
+  Shape checkedShape(const Shape& shape) const;
   void checkStateBeforeStep(double h) const;
   void collide();
+  double timedCollide();  // collide(), returning the seconds it took
   void prepareContacts();
   void carryContactPoints();
   void restoreRunaways();

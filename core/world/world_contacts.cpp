@@ -1,6 +1,7 @@
 // World: shapes, caller-given contacts, the collide stage and the
 // matching of contact points across steps for warm starting.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <string>
 
@@ -16,6 +17,18 @@ std::string ownerName(BodyId id) {
 }  // namespace
 
 ShapeId World::addShape(const Shape& shape) {
+  shapes_.push_back(checkedShape(shape));
+  return static_cast<ShapeId>(shapes_.size() - 1);
+}
+
+void World::replaceShape(ShapeId id, const Shape& shape) {
+  if (id < 0 || id >= static_cast<ShapeId>(shapes_.size()) || !shapes_[id].alive) {
+    throw Error("no shape " + std::to_string(id) + " in this world");
+  }
+  shapes_[id] = checkedShape(shape);
+}
+
+Shape World::checkedShape(const Shape& shape) const {
   Shape s = shape;
   const std::string who = "shape on " + ownerName(s.body);
   if (s.body != kWorldBody) body(s.body);
@@ -67,8 +80,8 @@ ShapeId World::addShape(const Shape& shape) {
   if (!(s.friction >= 0.0) || !(s.restitution >= 0.0 && s.restitution <= 1.0)) {
     throw Error(who + ": friction must be >= 0 and restitution in [0, 1]");
   }
-  shapes_.push_back(s);
-  return static_cast<ShapeId>(shapes_.size() - 1);
+  s.alive = true;
+  return s;
 }
 
 void World::removeShape(ShapeId id) {
@@ -137,6 +150,12 @@ void World::setContactMatchDistance(double d) {
 void World::setContactPersistence(double d) {
   if (!(d >= 0.0) || !std::isfinite(d)) throw Error("contact persistence distance must be >= 0");
   persistDistance_ = d;
+}
+
+double World::timedCollide() {
+  const auto start = std::chrono::steady_clock::now();
+  collide();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 void World::collide() {

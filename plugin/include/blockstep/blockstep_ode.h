@@ -78,6 +78,22 @@ ODE_API void dWorldGetBlockRunawayLimits(dWorldID w, dReal* energyGain, dReal* m
 ODE_API void dWorldSetBlockContactPersistence(dWorldID w, dReal distance);
 ODE_API dReal dWorldGetBlockContactPersistence(dWorldID w);
 
+/* blockstep's own collision. From the next step on, blockstep collides
+ * the geoms of `space` (and of the spaces inside it) itself: GJK/EPA for
+ * every convex pair, manifolds of up to four points clipped from the
+ * touching faces, speculative contacts within 2 cm, and, with
+ * dBlockCollideEverySubstep in flags, collision again before every
+ * sub-step rather than once per step. The contacts take `surface` as a
+ * dContact's surface would (mode, mu, bounce, soft ERP/CFM; fdir1 is not
+ * available). Geoms of bodies joined by a joint do not collide; ODE's
+ * category and collide bits hold. Spheres, boxes, capsules, cylinders,
+ * convex geoms and planes take part; other classes are left out (said
+ * once). The program stops calling dSpaceCollide for that space; contact
+ * joints it still makes are solved too. space NULL: off. */
+enum { dBlockCollideEverySubstep = 1 };
+ODE_API void dWorldSetBlockCollision(dWorldID w, dSpaceID space, const dSurfaceParameters* surface,
+                                     int flags);
+
 /* What the last dWorldBlockStep (or replaced step) of w did. */
 enum {
   dBlockStepperNone = 0,      /* not stepped yet, or refused (bad input) */
@@ -94,6 +110,7 @@ typedef struct dBlockStepStats {
   int residualCount; /* entries in the residual history */
   double solveSeconds;
   double stepSeconds;
+  double collideSeconds; /* blockstep's own collision (dWorldSetBlockCollision) */
   /* Bodies of islands the runaway guard caught in this step (non-finite,
    * or kinetic energy far beyond what forces, motors and corrections
    * explain: dWorldSetBlockRunawayLimits): put back as they were before

@@ -1,0 +1,139 @@
+// blockstep's own collision for ODE programs (dWorldSetBlockCollision):
+// the program makes geoms and never calls dSpaceCollide; blockstep
+// collides the space's geoms itself, every step or every sub-step.
+#include <cmath>
+
+#include "ode_twin.h"
+
+namespace blockstep::test {
+namespace {
+
+const auto* const kOde = ::testing::AddGlobalTestEnvironment(new OdeLibrary);
+
+constexpr double kStep = 1.0 / 60.0;
+
+// A cube of half side 0.25 as ODE's convex geom wants it: planes
+// (n, d), points, and polygons (count, then indices, counter-clockwise
+// seen from outside).
+const dReal kCubePlanes[] = {1, 0,  0, 0.25, -1, 0, 0, 0.25, 0, 1, 0,  0.25,
+                             0, -1, 0, 0.25, 0,  0, 1, 0.25, 0, 0, -1, 0.25};
+const dReal kCubePoints[] = {-0.25, -0.25, -0.25, 0.25,  -0.25, -0.25, 0.25, 0.25,
+                             -0.25, -0.25, 0.25,  -0.25, -0.25, -0.25, 0.25, 0.25,
+                             -0.25, 0.25,  0.25,  0.25,  0.25,  -0.25, 0.25, 0.25};
+const unsigned kCubePolygons[] = {4, 1, 2, 6, 5, 4, 0, 4, 7, 3, 4, 2, 3, 7, 6,
+                                  4, 0, 1, 5, 4, 4, 4, 5, 6, 7, 4, 0, 3, 2, 1};
+
+struct CollidedScene {
+  OdeScene scene;
+  dSpaceID space = dHashSpaceCreate(0);
+  dSurfaceParameters surface{};
+
+  CollidedScene() {
+    dCreatePlane(space, 0, 0, 1, 0);
+    surface.mode = dContactApprox1;
+    surface.mu = 0.6;
+    dWorldSetBlockSubsteppedSolver(scene.world, 10);
+  }
+  ~CollidedScene() { dSpaceDestroy(space); }
+  dBodyID body(double x, double y, double z, dGeomID geom, double mass = 1.0) {
+    dBodyID b = scene.box(x, y, z, mass, 0.5);
+    dGeomSetBody(geom, b);
+    return b;
+  }
+  void run(int frames, double h = kStep) {
+    for (int f = 0; f < frames; ++f)
+      ASSERT_EQ(dWorldBlockStep(scene.world, h), 1) << dWorldGetBlockStepMessage(scene.world);
+  }
+};
+
+double tiltDegrees(dBodyID b) {
+  const dReal* R = dBodyGetRotation(b);  // row major 3x4: R[10] is z.z
+  return std::acos(std::min(1.0, std::abs(double(R[10])))) * 180.0 / M_PI;
+}
+
+TEST(OdeBlockCollision, BoxAndConvexCubeRestFlatOnTheGroundWithoutDSpaceCollide) {
+  CollidedScene c;
+  dWorldSetBlockCollision(c.scene.world, c.space, &c.surface, 0);
+  const dBodyID box = c.body(0, 0, 0.26, dCreateBox(c.space, 0.5, 0.5, 0.5));
+  const dBodyID hull =
+      c.body(2, 0, 0.26, dCreateConvex(c.space, kCubePlanes, 6, kCubePoints, 8, kCubePolygons));
+  c.run(300);
+  for (dBodyID b : {box, hull}) {
+    EXPECT_NEAR(dBodyGetPosition(b)[2], 0.25, 3e-3);
+    EXPECT_LT(tiltDegrees(b), 0.1);
+    const dReal* v = dBodyGetLinearVel(b);
+    EXPECT_LT(std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), 1e-3);
+  }
+  dBlockStepStats stats;
+  ASSERT_EQ(dWorldGetBlockStepStats(c.scene.world, &stats), 1);
+  EXPECT_EQ(stats.stepper, dBlockStepperBlockstep);
+  EXPECT_GT(stats.collideSeconds, 0.0);
+}
+
+TEST(OdeBlockCollision, CategoryAndCollideBitsAndSwitchingOffAsOdeHasThem) {
+  CollidedScene c;
+  dWorldSetBlockCollision(c.scene.world, c.space, &c.surface, 0);
+  dGeomID ghostGeom = dCreateSphere(c.space, 0.1);
+  dGeomSetCategoryBits(ghostGeom, 2);
+  dGeomSetCollideBits(ghostGeom, 2);  // the plane is category ~0: it collides with it
+  dGeomID passGeom = dCreateSphere(c.space, 0.1);
+  dGeomSetCategoryBits(passGeom, 0);
+  dGeomSetCollideBits(passGeom, 0);  // collides with nothing
+  const dBodyID resting = c.body(0, 0, 0.1, ghostGeom);
+  const dBodyID falling = c.body(1, 0, 0.1, passGeom);
+  c.run(60);
+  EXPECT_NEAR(dBodyGetPosition(resting)[2], 0.1, 2e-3);
+  EXPECT_NEAR(dBodyGetPosition(falling)[2], 0.1 - 0.5 * 9.81 * 1.0, 0.05);
+  // Off: the resting sphere falls through the ground too.
+  dWorldSetBlockCollision(c.scene.world, nullptr, nullptr, 0);
+  c.run(30);
+  EXPECT_LT(dBodyGetPosition(resting)[2], -0.5);
+}
+
+TEST(OdeBlockCollision, GeomsWithoutACoreShapeAreLeftOutAndTheWorldSteps) {
+  CollidedScene c;
+  dWorldSetBlockCollision(c.scene.world, c.space, &c.surface, 0);
+  dCreateRay(c.space, 1.0);
+  const dBodyID ball = c.body(0, 0, 0.1, dCreateSphere(c.space, 0.1));
+  c.run(30);
+  EXPECT_NEAR(dBodyGetPosition(ball)[2], 0.1, 2e-3);
+  EXPECT_STREQ(dWorldGetBlockStepMessage(c.scene.world), "");
+}
+
+TEST(OdeBlockCollision, BadArgumentsAreRefusedAndChangeNothing) {
+  CollidedScene c;
+  dWorldSetBlockCollision(c.scene.world, c.space, nullptr, 0);        // no surface
+  dWorldSetBlockCollision(c.scene.world, c.space, &c.surface, 0x40);  // unknown flag
+  const dBodyID ball = c.body(0, 0, 0.1, dCreateSphere(c.space, 0.1));
+  c.run(30);
+  EXPECT_LT(dBodyGetPosition(ball)[2], 0.0) << "collision stayed off";
+}
+
+// A ball thrown at 6 m/s at a wall moves 0.1 m a frame, five times the
+// 20 mm speculative margin: collided once a frame it is found 20 mm deep,
+// collided every sub-step it stops at the wall.
+double deepestIntoWall(int flags) {
+  CollidedScene c;
+  dWorldSetGravity(c.scene.world, 0, 0, 0);
+  dWorldSetBlockCollision(c.scene.world, c.space, &c.surface, flags);
+  const double face = 0.33;
+  dGeomID wall = dCreateBox(c.space, 0.2, 2.0, 2.0);
+  dGeomSetPosition(wall, face + 0.1, 0, 1.0);
+  const dBodyID ball = c.body(0, 0, 1.0, dCreateSphere(c.space, 0.05));
+  dBodySetLinearVel(ball, 6.0, 0, 0);
+  double deepest = 0.0;
+  for (int f = 0; f < 30; ++f) {
+    c.run(1);
+    deepest = std::max(deepest, dBodyGetPosition(ball)[0] + 0.05 - face);
+  }
+  EXPECT_LT(std::abs(dBodyGetLinearVel(ball)[0]), 0.5) << "stopped at the wall";
+  return deepest;
+}
+
+TEST(OdeBlockCollision, CollidingEverySubstepStopsAFastBallAtTheWall) {
+  EXPECT_GT(deepestIntoWall(0), 0.015);
+  EXPECT_LT(deepestIntoWall(dBlockCollideEverySubstep), 1e-3);
+}
+
+}  // namespace
+}  // namespace blockstep::test
