@@ -168,6 +168,12 @@ void readEnvironment() {
       v && parseReal("BLOCKSTEP_CONTACT_PERSISTENCE", v, x)) {
     s.contactPersistence = x;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_COLLIDERS")) {
+    if (!std::strcmp(v, "1"))
+      setCollidersFromEnvironment(true);
+    else if (std::strcmp(v, "0"))
+      say("ignoring BLOCKSTEP_COLLIDERS=%s: expected 0 or 1", v);
+  }
   if (const char* v = std::getenv("BLOCKSTEP_MODE")) {
     if (!std::strcmp(v, "block"))
       s.solver.blockMode = BlockMode::Block;

@@ -100,6 +100,29 @@ void dWorldDestroy(dWorldID w) {
   forgetWorld(w);
 }
 
+// ------------------------------------------------------------ library
+// dInitODE fills ODE's collider table afresh: blockstep's colliders
+// (dBlockSetColliders) go in after it.
+
+void dInitODE() {
+  BLOCKSTEP_REAL(dInitODE);
+  real_dInitODE();
+  collidersAfterInit();
+}
+
+int dInitODE2(unsigned int flags) {
+  BLOCKSTEP_REAL(dInitODE2);
+  const int ok = real_dInitODE2(flags);
+  if (ok) collidersAfterInit();
+  return ok;
+}
+
+void dCloseODE() {
+  BLOCKSTEP_REAL(dCloseODE);
+  collidersBeforeClose();
+  real_dCloseODE();
+}
+
 // ---------------------------------------------------------------- geoms
 // A convex geom's points, which ODE keeps no copy of and has no getter
 // for: blockstep's collision builds the geom's hull from them.

@@ -35,6 +35,12 @@ F realOde(const char* name) {
 #define BLOCKSTEP_REAL(name) \
   static const auto real_##name = ::blockstep::plugin::realOde<decltype(&::name)>(#name)
 
+// The core's colliders in ODE (colliders.cpp): ODE's dInitODE and
+// dCloseODE tell them when ODE's collider table is ready or gone.
+void collidersAfterInit();
+void collidersBeforeClose();
+void setCollidersFromEnvironment(bool on);
+
 struct Replace {
   bool quickStep = false;
   bool step = false;

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "adapters/ode/body_state.h"
+#include "core/collision/convex_hull.h"
 
 namespace blockstep::compare {
 
@@ -70,6 +71,41 @@ dBodyID Scene::addBody(const dMass& mass, double x, double y, double z) {
 
 void Scene::addGeom(dGeomID geom, dBodyID body) {
   if (body) dGeomSetBody(geom, body);
+}
+
+dGeomID Scene::addConvex(const std::vector<double>& points, dBodyID body, double density,
+                         dMass* mass) {
+  std::vector<Vec3> cloud;
+  for (std::size_t i = 0; i + 2 < points.size(); i += 3)
+    cloud.emplace_back(points[i], points[i + 1], points[i + 2]);
+  const ConvexHull hull = ConvexHull::fromPoints(cloud);  // throws for a flat cloud
+  auto data = std::make_unique<ConvexData>();
+  for (const Vec3& v : hull.vertices())
+    data->points.insert(data->points.end(), {v.x(), v.y(), v.z()});
+  for (const ConvexHull::Face& f : hull.faces()) {
+    data->planes.insert(data->planes.end(), {f.normal.x(), f.normal.y(), f.normal.z(), f.offset});
+    data->polygons.push_back(static_cast<unsigned>(f.count));
+    for (int k = 0; k < f.count; ++k)
+      data->polygons.push_back(static_cast<unsigned>(hull.faceVertices()[f.first + k]));
+  }
+  if (mass) {
+    const MassProperties m = hullMass(hull, density);
+    const Mat3& I = m.inertia;
+    dMassSetParameters(mass, m.mass, 0, 0, 0, I(0, 0), I(1, 1), I(2, 2), I(0, 1), I(0, 2), I(1, 2));
+  }
+  dGeomID g = dCreateConvex(space_, data->planes.data(), static_cast<unsigned>(hull.faces().size()),
+                            data->points.data(), static_cast<unsigned>(hull.vertices().size()),
+                            data->polygons.data());
+  data->geom = g;
+  convexData_.push_back(std::move(data));
+  addGeom(g, body);
+  return g;
+}
+
+const std::vector<dReal>* Scene::convexPoints(dGeomID geom) const {
+  for (const auto& data : convexData_)
+    if (data->geom == geom) return &data->points;
+  return nullptr;
 }
 
 JointRecord& Scene::record(dJointID j, JointKind kind, dBodyID b1, dBodyID b2,

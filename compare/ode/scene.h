@@ -88,6 +88,14 @@ class Scene {
   void setName(std::string name) { name_ = std::move(name); }
   dBodyID addBody(const dMass& mass, double x, double y, double z);
   void addGeom(dGeomID geom, dBodyID body);
+  // A convex geom, the hull of `points` (x, y, z each, in the body's
+  // frame), on `body`; its mass properties at `density` (kg/m^3) about
+  // its centre of mass, which must be the body's origin, in `mass`. The
+  // scene keeps the planes, points and polygons ODE reads from.
+  dGeomID addConvex(const std::vector<double>& points, dBodyID body, double density, dMass* mass);
+  // The hull vertices of a convex geom made by addConvex (x, y, z each),
+  // or nullptr.
+  const std::vector<dReal>* convexPoints(dGeomID geom) const;
   dJointID ball(dBodyID b1, dBodyID b2, double x, double y, double z);
   dJointID hinge(dBodyID b1, dBodyID b2, const dVector3 anchor, const dVector3 axis);
   dJointID fixed(dBodyID b1, dBodyID b2);
@@ -107,6 +115,12 @@ class Scene {
   dJointGroupID contacts_ = nullptr;
   std::vector<dBodyID> bodies_;
   std::vector<JointRecord> joints_;
+  struct ConvexData {
+    dGeomID geom = nullptr;
+    std::vector<dReal> planes, points;
+    std::vector<unsigned> polygons;
+  };
+  std::vector<std::unique_ptr<ConvexData>> convexData_;
   dBodyID probe_ = nullptr;
   DrawHints draw_;
   dSurfaceParameters surface_{};

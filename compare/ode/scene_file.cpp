@@ -41,9 +41,16 @@ const std::vector<std::pair<std::string, int>>& hinge2Params() {
   return params;
 }
 
-json geomToJson(dGeomID g) {
+json geomToJson(const Scene& s, dGeomID g) {
   json j;
   switch (dGeomGetClass(g)) {
+    case dConvexClass: {
+      const std::vector<dReal>* points = s.convexPoints(g);
+      if (!points)
+        throw std::invalid_argument("scene file: a convex geom not made by Scene::addConvex");
+      j = {{"type", "convex"}, {"points", *points}};
+      break;
+    }
     case dBoxClass: {
       dVector3 size;
       dGeomBoxGetLengths(g, size);
@@ -72,7 +79,8 @@ json geomToJson(dGeomID g) {
     }
     default:
       throw std::invalid_argument("scene file: geom class " + std::to_string(dGeomGetClass(g)) +
-                                  " cannot be written (box, sphere, capsule, cylinder, plane)");
+                                  " cannot be written (box, sphere, capsule, cylinder, convex, "
+                                  "plane)");
   }
   if (!dGeomGetBody(g)) {
     j["position"] = vec3(dGeomGetPosition(g));
@@ -152,7 +160,8 @@ void normalizedQuaternion(const Reader& r, const json& j, dQuaternion q) {
   }
 }
 
-dGeomID makeGeom(const Reader& r, const json& j, dSpaceID space) {
+dGeomID makeGeom(const Reader& r, const json& j, Scene& s) {
+  dSpaceID space = s.space();
   const std::string type = r.at("type").text(r.field(j, "type"));
   dGeomID g = nullptr;
   if (type == "box") {
@@ -175,8 +184,20 @@ dGeomID makeGeom(const Reader& r, const json& j, dSpaceID space) {
     if (len < 1e-9) r.at("normal").fail("must not be zero");
     const double d = r.at("offset").number(r.field(j, "offset"));
     g = dCreatePlane(space, n[0] / len, n[1] / len, n[2] / len, d / len);
+  } else if (type == "convex") {
+    const json& points = r.field(j, "points");
+    if (!points.is_array() || points.size() < 12 || points.size() % 3 != 0)
+      r.at("points").fail("must be x, y, z of 4 or more points");
+    std::vector<double> xyz;
+    for (std::size_t k = 0; k < points.size(); ++k)
+      xyz.push_back(r.at("points").at(k).number(points[k]));
+    try {
+      g = s.addConvex(xyz, nullptr, 0.0, nullptr);
+    } catch (const std::exception& e) {
+      r.at("points").fail(e.what());
+    }
   } else {
-    r.at("type").fail("'" + type + "' is not box, sphere, capsule, cylinder or plane");
+    r.at("type").fail("'" + type + "' is not box, sphere, capsule, cylinder, convex or plane");
   }
   if (j.contains("category_bits")) {
     if (!j.at("category_bits").is_number_unsigned()) r.at("category_bits").fail("must be >= 0");
@@ -227,7 +248,7 @@ nlohmann::json sceneToJson(const Scene& s) {
                     {"inertia", {m.I[0], m.I[5], m.I[10], m.I[1], m.I[2], m.I[6]}}};
     json geoms = json::array();
     for (dGeomID geom = dBodyGetFirstGeom(b); geom; geom = dBodyGetNextGeom(geom))
-      geoms.push_back(geomToJson(geom));
+      geoms.push_back(geomToJson(s, geom));
     if (!geoms.empty()) body["geoms"] = geoms;
     bodies.push_back(body);
   }
@@ -235,7 +256,7 @@ nlohmann::json sceneToJson(const Scene& s) {
   json statics = json::array();
   for (int i = 0; i < dSpaceGetNumGeoms(s.space()); ++i) {
     dGeomID geom = dSpaceGetGeom(s.space(), i);
-    if (!dGeomGetBody(geom)) statics.push_back(geomToJson(geom));
+    if (!dGeomGetBody(geom)) statics.push_back(geomToJson(s, geom));
   }
   // The space keeps geoms in the order they last moved: static geoms never
   // move, so they come out in reverse of their making; put them back.
@@ -404,7 +425,7 @@ std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
       const json& geoms = *geomList;
       for (std::size_t k = 0; k < geoms.size(); ++k) {
         const Reader rg = r.at("geoms").at(k);
-        dGeomID g = makeGeom(rg, geoms[k], s->space());
+        dGeomID g = makeGeom(rg, geoms[k], *s);
         if (dGeomGetClass(g) == dPlaneClass) rg.at("type").fail("a plane cannot belong to a body");
         s->addGeom(g, b);
       }
@@ -415,7 +436,7 @@ std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
     const Reader rs = root.at("static");
     for (std::size_t i = 0; i < statics.size(); ++i) {
       const Reader r = rs.at(i);
-      dGeomID g = makeGeom(r, statics[i], s->space());
+      dGeomID g = makeGeom(r, statics[i], *s);
       if (dGeomGetClass(g) == dPlaneClass) continue;
       dVector3 p;
       r.at("position").vector(r.field(statics[i], "position"), 3, p);

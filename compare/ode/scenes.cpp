@@ -4,9 +4,11 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <random>
 #include <stdexcept>
 
 #include "compare/ode/scene.h"
+#include "core/collision/convex_hull.h"
 
 namespace blockstep::compare {
 
@@ -81,6 +83,97 @@ void buildPyramid(Scene& s) {
     }
   }
   s.setProbe(top);
+}
+
+// A random convex hull: 10 points of a normal cloud (sigma 0.06 m) about
+// its centre of mass, which becomes the body's origin.
+std::vector<double> randomHullPoints(std::mt19937& rng, double sigma) {
+  std::normal_distribution<double> gauss(0.0, sigma);
+  std::vector<Vec3> cloud(10);
+  for (Vec3& p : cloud)
+    p = Vec3(gauss(rng), gauss(rng), gauss(rng));
+  const ConvexHull hull = ConvexHull::fromPoints(cloud);
+  const Vec3 centre = hullMass(hull, 1.0).centre;
+  std::vector<double> points;
+  for (const Vec3& v : hull.vertices())
+    points.insert(points.end(), {v.x() - centre.x(), v.y() - centre.y(), v.z() - centre.z()});
+  return points;
+}
+
+dBodyID convexBody(Scene& s, const std::vector<double>& points, double density, double x, double y,
+                   double z) {
+  dMass m;
+  dMassSetZero(&m);
+  dBodyID b = s.addBody(m, x, y, z);  // the mass once the hull gives it
+  s.addConvex(points, b, density, &m);
+  dBodySetMass(b, &m);
+  return b;
+}
+
+// `count` random convex hulls (500 kg/m^3) dropped in a loose column onto
+// the plane: what ODE's one-point convex contacts leave rocking.
+void buildHulls(Scene& s, int count) {
+  groundPlane(s);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> place(-0.6, 0.6);
+  for (int i = 0; i < count; ++i) {
+    const std::vector<double> points = randomHullPoints(rng, 0.06);
+    convexBody(s, points, 500.0, place(rng), place(rng), 0.2 + 0.15 * i / 4);
+  }
+}
+
+// `layers` layers of 10 x 10 shapes, 0.5 m apart, each a box, sphere,
+// capsule, cylinder or convex hull of 0.05-0.4 m (500 kg/m^3), in random
+// turns, dropped onto the plane: 1,000 shapes at the default 10 layers.
+void buildPile(Scene& s, int layers) {
+  groundPlane(s);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> size(0.05, 0.4), unit(-1.0, 1.0);
+  constexpr double kDensity = 500.0;
+  for (int layer = 0; layer < layers; ++layer) {
+    for (int i = 0; i < 100; ++i) {
+      const double x = (i % 10 - 4.5) * 0.5, y = (i / 10 - 4.5) * 0.5, z = 0.3 + 0.5 * layer;
+      dMass m;
+      dBodyID b = nullptr;
+      const unsigned kind = rng() % 5;
+      switch (kind) {
+        case 0: {
+          const double sx = size(rng), sy = size(rng), sz = size(rng);
+          dMassSetBox(&m, kDensity, sx, sy, sz);
+          b = s.addBody(m, x, y, z);
+          s.addGeom(dCreateBox(s.space(), sx, sy, sz), b);
+          break;
+        }
+        case 1: {
+          const double r = size(rng) / 2;
+          dMassSetSphere(&m, kDensity, r);
+          b = s.addBody(m, x, y, z);
+          s.addGeom(dCreateSphere(s.space(), r), b);
+          break;
+        }
+        case 2:
+        case 3: {
+          const double r = size(rng) / 4, len = size(rng) * 0.75;
+          const bool cap = kind == 2;
+          if (cap) {
+            dMassSetCapsule(&m, kDensity, 3, r, len);
+          } else {
+            dMassSetCylinder(&m, kDensity, 3, r, len);
+          }
+          b = s.addBody(m, x, y, z);
+          s.addGeom(cap ? dCreateCapsule(s.space(), r, len) : dCreateCylinder(s.space(), r, len),
+                    b);
+          break;
+        }
+        default:
+          b = convexBody(s, randomHullPoints(rng, 0.07), kDensity, x, y, z);
+          break;
+      }
+      dQuaternion q = {1.0, unit(rng), unit(rng), unit(rng)};
+      dNormalize4(q);
+      dBodySetQuaternion(b, q);
+    }
+  }
 }
 
 // Where a ragdoll stands: turned `yaw` about z, then moved by (x, y, z).
@@ -456,6 +549,13 @@ const std::map<std::string, SceneKind>& builders() {
       {"bridge",
        {[](Scene& s, int) { buildBridge(s); },
         "20 one-kilogram planks hinged across a gap, a 100 kg crate dropped on the middle"}},
+      {"hulls",
+       {[](Scene& s, int n) { buildHulls(s, n > 0 ? n : 100); },
+        "100 random convex hulls (size: their count) dropped in a loose column onto the plane"}},
+      {"pile",
+       {[](Scene& s, int n) { buildPile(s, n > 0 ? n : 10); },
+        "1,000 boxes, spheres, capsules, cylinders and convex hulls (size: layers of 100) "
+        "dropped onto the plane"}},
       {"star",
        {[](Scene& s, int) { buildStar(s); },
         "ODE's demo_I: a 0.1 kg anchor carrying ten heavier particles on ball joints, spinning"}},

@@ -16,15 +16,14 @@ ShapePose poseOf(const Shape& s, const std::vector<Body>& bodies) {
                    (b.orientation * s.localOrientation).toRotationMatrix()};
 }
 
-// Dispatches on the two kinds, ordering them so the normal points from the
-// manifold's body A to B. Returns the point count; `swapped` says the
-// pair was turned round. The exact fast paths (sphere and box against
-// planes, spheres and boxes with each other) come first; every other
-// convex pair goes through GJK/EPA and feature clipping.
-int narrowphase(const Shape& s1, const ShapePose& p1, const Shape& s2, const ShapePose& p2,
-                const CollisionSettings& settings, ContactManifold& m, bool& swapped) {
+}  // namespace
+
+// The exact fast paths (sphere and box against planes, spheres and boxes
+// with each other) come first; every other convex pair goes through
+// GJK/EPA and feature clipping.
+int collideShapes(const Shape& s1, const ShapePose& p1, const Shape& s2, const ShapePose& p2,
+                  double margin, bool boxBoxBySat, ContactManifold& m, bool& swapped) {
   using K = Shape::Kind;
-  const double margin = settings.margin;
   swapped = false;
   const Shape* a = &s1;
   const Shape* b = &s2;
@@ -43,7 +42,7 @@ int narrowphase(const Shape& s1, const ShapePose& p1, const Shape& s2, const Sha
     if (b->kind == K::Plane) return 0;  // both static
     return collideConvexPlane(*a, *b, *pb, margin, m);
   }
-  if (a->kind == K::Box && b->kind == K::Box && settings.boxBoxBySat)
+  if (a->kind == K::Box && b->kind == K::Box && boxBoxBySat)
     return collideBoxes(*a, *pa, *b, *pb, margin, m);
   if (a->kind == K::Box && b->kind == K::Sphere)
     return collideBoxSphere(*a, *pa, *b, *pb, margin, m);
@@ -51,8 +50,6 @@ int narrowphase(const Shape& s1, const ShapePose& p1, const Shape& s2, const Sha
     return collideSpheres(*a, *pa, *b, *pb, margin, m);
   return collideConvex(*a, *pa, *b, *pb, margin, m);
 }
-
-}  // namespace
 
 void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
                        const CollisionSettings& settings, const std::vector<std::uint64_t>& jointed,
@@ -81,7 +78,10 @@ void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>
     }
     ContactManifold m;
     bool swapped = false;
-    if (narrowphase(s1, poses_[i], s2, poses_[j], settings, m, swapped) == 0) continue;
+    if (collideShapes(s1, poses_[i], s2, poses_[j], settings.margin, settings.boxBoxBySat, m,
+                      swapped) == 0) {
+      continue;
+    }
     const Shape& a = swapped ? s2 : s1;
     const Shape& b = swapped ? s1 : s2;
     m.bodyA = a.body;

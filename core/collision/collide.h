@@ -40,6 +40,16 @@ struct CollisionSettings {
   }
 };
 
+// One pair of shapes at these poses: fills m's normal and points (up to
+// four, each within `margin` of touching) and returns their count, the
+// normal pointing from the first shape to the second, or from the second
+// to the first when `swapped` comes back set (the kinds were put in the
+// order the collision routines take). The poses place the shapes (their
+// bodies and local poses are not read); a plane is placed by its own
+// normal and offset.
+int collideShapes(const Shape& s1, const ShapePose& p1, const Shape& s2, const ShapePose& p2,
+                  double margin, bool boxBoxBySat, ContactManifold& m, bool& swapped);
+
 // The collide stage. Keeps its buffers (poses, boxes, pairs, the sweep's
 // order) from step to step, so a warmed-up scene allocates nothing.
 class Collider {

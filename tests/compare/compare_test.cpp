@@ -423,7 +423,7 @@ TEST(CompareSceneFiles, WrittenAndReadBackStepAlike) {
   RunOptions o;
   o.frames = 30;
   for (const char* name : {"chain", "ragdoll", "stack", "cloth", "softcube", "hair", "cradle",
-                           "car", "bridge", "ragdoll_pile"}) {
+                           "car", "bridge", "ragdoll_pile", "hulls"}) {
     const auto original = makeScene(name, 6);
     const auto copy = sceneFromJson(sceneToJson(*original));
     EXPECT_EQ(copy->name(), original->name());

@@ -2,6 +2,9 @@
 // the program makes geoms and never calls dSpaceCollide; blockstep
 // collides the space's geoms itself, every step or every sub-step.
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
 
 #include "ode_twin.h"
 
@@ -133,6 +136,65 @@ double deepestIntoWall(int flags) {
 TEST(OdeBlockCollision, CollidingEverySubstepStopsAFastBallAtTheWall) {
   EXPECT_GT(deepestIntoWall(0), 0.015);
   EXPECT_LT(deepestIntoWall(dBlockCollideEverySubstep), 1e-3);
+}
+
+// dBlockSetColliders: ODE's own dCollide, with the core's collision for
+// pairs with a convex geom or a cylinder. The colliders stay in ODE's
+// table for the process (until dCloseODE), so the checks run in a child
+// process of their own and report what failed through its exit.
+int contactsOf(dGeomID a, dGeomID b, dContactGeom* out) {
+  return dCollide(a, b, 8, out, sizeof(dContactGeom));
+}
+
+std::string checkCoreColliders() {
+  std::string failed;
+  auto check = [&](bool ok, const char* what) {
+    if (!ok) failed += std::string(what) + "; ";
+  };
+  auto near = [](double a, double b) { return std::abs(a - b) < 1e-9; };
+  dSpaceID space = dSimpleSpaceCreate(0);
+  dGeomID ground = dCreateBox(space, 4, 4, 1);
+  dGeomSetPosition(ground, 0, 0, -0.5);  // top face at z = 0
+  dGeomID hull = dCreateConvex(space, kCubePlanes, 6, kCubePoints, 8, kCubePolygons);
+  dGeomSetPosition(hull, 0.3, 0, 0.25 - 0.004);  // 4 mm deep
+  dGeomID cylinder = dCreateCylinder(space, 0.2, 0.5);
+  dGeomSetPosition(cylinder, -1, 0, 0.25 - 0.002);
+  dContactGeom c[8];
+  const int odeHull = contactsOf(hull, ground, c);
+  const int odeCylinder = contactsOf(cylinder, ground, c);
+  check(dBlockSetColliders(1) == 1, "dBlockSetColliders(1) failed");
+  const int count = contactsOf(hull, ground, c);
+  check(count == 4, "the hull should touch on 4 points");
+  for (int i = 0; i < count; ++i) {
+    check(near(c[i].depth, 0.004), "depth");
+    check(near(c[i].normal[2], 1.0), "the normal should push the hull (o1) up");
+    check(near(std::abs(c[i].pos[0] - 0.3), 0.25) && near(std::abs(c[i].pos[1]), 0.25),
+          "the points should be the cube's corners");
+    check(c[i].g1 == hull && c[i].g2 == ground, "g1, g2");
+  }
+  // The pair the other way round: ODE flips the normals for o1 = ground.
+  check(contactsOf(ground, hull, c) == 4 && near(c[0].normal[2], -1.0) && c[0].g1 == ground,
+        "reversed pair");
+  const int rim = contactsOf(cylinder, ground, c);
+  check(rim == 4, "the cylinder should stand on 4 points of its rim");
+  for (int i = 0; i < rim; ++i)
+    check(near(c[i].depth, 0.002), "cylinder depth");
+  dGeomSetPosition(hull, 0.3, 0, 0.3);
+  check(contactsOf(hull, ground, c) == 0, "apart: no contact");
+  std::fprintf(stderr, "ODE's collider: hull %d point(s), cylinder %d; blockstep's: %d and %d\n",
+               odeHull, odeCylinder, count, rim);
+  dSpaceDestroy(space);
+  return failed;
+}
+
+TEST(OdeBlockColliders, ConvexCubeAndCylinderOnABoxGetFourPointsInOdesConvention) {
+  EXPECT_EXIT(
+      {
+        const std::string failed = checkCoreColliders();
+        std::fprintf(stderr, "%s\n", failed.empty() ? "all held" : failed.c_str());
+        std::exit(failed.empty() ? 0 : 1);
+      },
+      ::testing::ExitedWithCode(0), "all held");
 }
 
 }  // namespace

@@ -126,6 +126,16 @@ ODE_API int dWorldGetBlockResidualHistory(dWorldID w, dReal* maxima, dReal* rms,
 /* Why the last step of w was refused or fell back to ODE ("" if neither). */
 ODE_API const char* dWorldGetBlockStepMessage(dWorldID w);
 
+/* blockstep's collision as ODE's collider: from now on (or from
+ * dInitODE, when called before it) every geom pair with a convex geom or
+ * a cylinder that dCollide meets goes through blockstep's GJK/EPA and
+ * face clipping (dSetColliderOverride), giving up to four contact points
+ * where ODE's own paths give one. Whatever steps the world. ODE keeps no
+ * copy of the colliders replaced: on = 0 once they are in place returns
+ * 0 and leaves them until dCloseODE (the next dInitODE keeps ODE's own).
+ * BLOCKSTEP_COLLIDERS=1 sets it at load. Returns 1 on success. */
+ODE_API int dBlockSetColliders(int on);
+
 /* Which ODE steppers go to blockstep: "all", "quickstep", "step" or
  * "none" (the default unless preloaded; BLOCKSTEP_REPLACE sets it at load).
  * Returns 0 for an unknown mode (nothing changes). */
