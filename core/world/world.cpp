@@ -460,10 +460,14 @@ void World::step(double h) {
 void World::keepContactsForNextStep() {
   previousContacts_.swap(contacts_);
   contacts_.clear();
-  std::sort(previousContacts_.begin(), previousContacts_.end(),
-            [](const ContactManifold& x, const ContactManifold& y) {
-              return bodyPairKey(x.bodyA, x.bodyB) < bodyPairKey(y.bodyA, y.bodyB);
-            });
+  // The collider gives pairs in shape order, usually body order already:
+  // a manifold is over 1 kB, and sorting them anyway cost 5% of a hull
+  // pile's step.
+  auto byBodies = [](const ContactManifold& x, const ContactManifold& y) {
+    return bodyPairKey(x.bodyA, x.bodyB) < bodyPairKey(y.bodyA, y.bodyB);
+  };
+  if (!std::is_sorted(previousContacts_.begin(), previousContacts_.end(), byBodies))
+    std::sort(previousContacts_.begin(), previousContacts_.end(), byBodies);
 }
 
 // Collision every sub-step: the step runs as `substeps` one-sub-step
