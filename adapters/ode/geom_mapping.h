@@ -47,9 +47,9 @@ class ConvexGeoms {
 };
 
 // Fills `out` with the shape of `geom` on core body `body` (kWorldBody:
-// a geom without a body), keeping out's friction, restitution and
-// filter unless the geom has its own (category and collide bits are
-// ODE's). Returns false with `why` for a geom with no core shape.
+// a geom without a body), its filter from the geom's category and collide
+// bits; out's friction and restitution are kept. Returns false with
+// `why` for a geom with no core shape.
 bool shapeOfGeom(dGeomID geom, BodyId body, Shape& out, std::string& why);
 
 // The geom's pose in the world (for a geom on a body, the body's pose

@@ -184,13 +184,9 @@ void WorldBridge::syncShapes() {
     collision.surface = mapped.manifold.surface;
     collision.surface.softness =
         contactSoftness(collision.surface.softness.erp, collision.surface.softness.cfm);
-    collision.collideConnected = false;  // as ODE programs skip dAreConnected pairs
-    // The shapes carry the surface's friction and bounce: the core mixes
-    // them per pair (sqrt(mu mu) and max(e, e) give the surface's own).
-    Shape surfaceShape;
-    surfaceShape.friction = collision.surface.mu;
-    surfaceShape.restitution = collision.surface.restitution;
-    syncSpace(settings_.collisionSpace, surfaceShape);
+    collision.collideConnected = false;   // as ODE programs skip dAreConnected pairs
+    collision.surfaceFromShapes = false;  // the program's one surface, mu2 and all
+    syncSpace(settings_.collisionSpace);
   }
   goneGeoms_.clear();
   geoms_.forEach([&](dGeomID g, MappedGeom& m) {
@@ -202,18 +198,18 @@ void WorldBridge::syncShapes() {
     geoms_.erase(g);
 }
 
-void WorldBridge::syncSpace(dSpaceID space, const Shape& surfaceShape) {
+void WorldBridge::syncSpace(dSpaceID space) {
   const int n = dSpaceGetNumGeoms(space);
   for (int i = 0; i < n; ++i) {
     const dGeomID g = dSpaceGetGeom(space, i);
     if (dGeomIsSpace(g)) {
-      syncSpace(reinterpret_cast<dSpaceID>(g), surfaceShape);
+      syncSpace(reinterpret_cast<dSpaceID>(g));
       continue;
     }
     if (!dGeomIsEnabled(g)) continue;
     MappedGeom& m = geoms_[g];
     m.seen = true;
-    Shape shape = surfaceShape;
+    Shape shape;
     std::string why;
     if (!shapeOfGeom(g, coreBody(dGeomGetBody(g)), shape, why)) {
       if (collisionNote_.find(why) == std::string::npos) {

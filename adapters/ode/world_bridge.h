@@ -151,7 +151,7 @@ class WorldBridge {
   void syncBodies(const WorldRecord& record);
   void syncJoints(const WorldRecord& record);
   void syncShapes();
-  void syncSpace(dSpaceID space, const Shape& surfaceShape);
+  void syncSpace(dSpaceID space);
   void handBackRunaways(const WorldRecord& record);
   bool handedBack(dBodyID body);
   dBodyID odeBody(const WorldRecord& record, BodyId id);

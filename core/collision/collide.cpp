@@ -87,9 +87,11 @@ void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>
     m.bodyA = a.body;
     m.bodyB = b.body;
     m.surface = settings.surface;
-    m.surface.mu = std::sqrt(a.friction * b.friction);
-    m.surface.mu2 = -1.0;
-    m.surface.restitution = std::max(a.restitution, b.restitution);
+    if (settings.surfaceFromShapes) {
+      m.surface.mu = std::sqrt(a.friction * b.friction);
+      m.surface.mu2 = -1.0;
+      m.surface.restitution = std::max(a.restitution, b.restitution);
+    }
     out.push_back(m);
   }
 }

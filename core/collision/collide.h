@@ -23,6 +23,10 @@ struct CollisionSettings {
   // Collide before every sub-step (SolverSettings::substeps) rather than
   // once per step: contacts follow the bodies at the sub-step's rate.
   bool everySubstep = false;
+  // Mix each pair's friction and bounce from its two shapes (below); when
+  // false every manifold keeps `surface` exactly (an ODE program's one
+  // contact surface, second friction coefficient included).
+  bool surfaceFromShapes = true;
   // Every manifold starts from this surface; friction mixes as
   // sqrt(muA muB) and restitution as max(eA, eB) of the two shapes.
   // Rigid normals (CFM 0: ODE's CFM is a compliance in m/N, so heavy

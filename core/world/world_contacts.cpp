@@ -30,17 +30,19 @@ void World::replaceShape(ShapeId id, const Shape& shape) {
 
 Shape World::checkedShape(const Shape& shape) const {
   Shape s = shape;
-  const std::string who = "shape on " + ownerName(s.body);
+  // Named only when there is an error: a mirror of ODE geoms replaces
+  // its shapes every step.
+  auto who = [&s] { return "shape on " + ownerName(s.body); };
   if (s.body != kWorldBody) body(s.body);
-  if (!s.localPosition.allFinite()) throw Error(who + ": position is not finite");
+  if (!s.localPosition.allFinite()) throw Error(who() + ": position is not finite");
   if (!isFinite(s.localOrientation) || s.localOrientation.norm() < 1e-9) {
-    throw Error(who + ": orientation must be a finite, non-zero quaternion");
+    throw Error(who() + ": orientation must be a finite, non-zero quaternion");
   }
   s.localOrientation.normalize();
   switch (s.kind) {
     case Shape::Kind::Sphere:
       if (!(s.radius > 0.0) || !std::isfinite(s.radius)) {
-        throw Error(who + ": sphere radius must be positive and finite");
+        throw Error(who() + ": sphere radius must be positive and finite");
       }
       break;
     case Shape::Kind::Capsule:
@@ -48,29 +50,29 @@ Shape World::checkedShape(const Shape& shape) const {
       const bool capsule = s.kind == Shape::Kind::Capsule;
       const char* name = capsule ? "capsule" : "cylinder";
       if (!(s.radius > 0.0) || !std::isfinite(s.radius)) {
-        throw Error(who + ": " + name + " radius must be positive and finite");
+        throw Error(who() + ": " + name + " radius must be positive and finite");
       }
       if (!(capsule ? s.halfLength >= 0.0 : s.halfLength > 0.0) || !std::isfinite(s.halfLength)) {
-        throw Error(who + ": " + name + " length must be " + (capsule ? ">= 0" : "positive") +
+        throw Error(who() + ": " + name + " length must be " + (capsule ? ">= 0" : "positive") +
                     " and finite");
       }
       break;
     }
     case Shape::Kind::Box:
       if (!(s.halfExtents.minCoeff() > 0.0) || !s.halfExtents.allFinite()) {
-        throw Error(who + ": box half extents must be positive and finite");
+        throw Error(who() + ": box half extents must be positive and finite");
       }
       break;
     case Shape::Kind::Convex:
       if (!s.hull || s.hull->faces().empty()) {
-        throw Error(who + ": a convex shape needs a hull (ConvexHull::fromPoints)");
+        throw Error(who() + ": a convex shape needs a hull (ConvexHull::fromPoints)");
       }
       break;
     case Shape::Kind::Plane: {
-      if (s.body != kWorldBody) throw Error(who + ": planes belong to the world (kWorldBody)");
+      if (s.body != kWorldBody) throw Error(who() + ": planes belong to the world (kWorldBody)");
       const double n = s.planeNormal.norm();
       if (!s.planeNormal.allFinite() || n < 1e-9 || !std::isfinite(s.planeOffset)) {
-        throw Error(who + ": plane needs a finite non-zero normal and a finite offset");
+        throw Error(who() + ": plane needs a finite non-zero normal and a finite offset");
       }
       s.planeNormal /= n;
       s.planeOffset /= n;
@@ -78,7 +80,7 @@ Shape World::checkedShape(const Shape& shape) const {
     }
   }
   if (!(s.friction >= 0.0) || !(s.restitution >= 0.0 && s.restitution <= 1.0)) {
-    throw Error(who + ": friction must be >= 0 and restitution in [0, 1]");
+    throw Error(who() + ": friction must be >= 0 and restitution in [0, 1]");
   }
   s.alive = true;
   return s;

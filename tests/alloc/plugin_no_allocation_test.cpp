@@ -104,6 +104,43 @@ TEST(PluginNoAllocation, FramesAllocateNothingAfterWarmUp) {
   dCloseODE();
 }
 
+// blockstep colliding the space itself every sub-step: boxes stacked,
+// a capsule and a cylinder on the ground, shapes synced from the geoms
+// every step.
+TEST(PluginNoAllocation, OwnCollisionEverySubstepAllocatesNothingAfterWarmUp) {
+  dInitODE2(0);
+  dWorldID w = dWorldCreate();
+  dWorldSetGravity(w, 0, 0, -9.81);
+  dWorldSetBlockSubsteppedSolver(w, 4);
+  dSpaceID space = dHashSpaceCreate(0);
+  dCreatePlane(space, 0, 0, 1, 0);
+  auto body = [&](dGeomID g, double x, double z) {
+    dBodyID b = dBodyCreate(w);
+    dMass m;
+    dMassSetBoxTotal(&m, 1.0, 0.5, 0.5, 0.5);
+    dBodySetMass(b, &m);
+    dBodySetPosition(b, x, 0.0, z);
+    dGeomSetBody(g, b);
+  };
+  for (int i = 0; i < 3; ++i)
+    body(dCreateBox(space, 0.5, 0.5, 0.5), 0.0, 0.25 + 0.5 * i);
+  body(dCreateCapsule(space, 0.1, 0.4), 2.0, 0.4);
+  body(dCreateCylinder(space, 0.2, 0.3), 4.0, 0.15);
+  dSurfaceParameters surface{};
+  surface.mode = dContactApprox1;
+  surface.mu = 0.6;
+  dWorldSetBlockCollision(w, space, &surface, dBlockCollideEverySubstep);
+  for (int i = 0; i < 60; ++i)
+    ASSERT_EQ(dWorldBlockStep(w, 1.0 / 60.0), 1) << dWorldGetBlockStepMessage(w);
+  const long before = blockstep::test::allocationCount();
+  for (int i = 0; i < 30; ++i)
+    ASSERT_EQ(dWorldBlockStep(w, 1.0 / 60.0), 1);
+  EXPECT_EQ(blockstep::test::allocationCount() - before, 0);
+  dSpaceDestroy(space);
+  dWorldDestroy(w);
+  dCloseODE();
+}
+
 TEST(PluginNoAllocation, TheCounterSeesAllocations) {
   const long before = blockstep::test::allocationCount();
   std::vector<int> v;

@@ -112,6 +112,33 @@ TEST(OdeBlockCollision, BadArgumentsAreRefusedAndChangeNothing) {
   EXPECT_LT(dBodyGetPosition(ball)[2], 0.0) << "collision stayed off";
 }
 
+// The surface reaches every contact blockstep makes: a box on a 20-degree
+// slope (tan 20 = 0.364) slides with mu 0.3 and holds with mu 0.45.
+double slideOnSlope(double mu) {
+  CollidedScene c;
+  dSpaceDestroy(c.space);  // without the flat ground
+  c.space = dHashSpaceCreate(0);
+  const double slope = 20.0 * M_PI / 180.0;
+  dCreatePlane(c.space, 0, -std::sin(slope), std::cos(slope), 0);
+  c.surface.mu = mu;
+  dWorldSetBlockCollision(c.scene.world, c.space, &c.surface, 0);
+  const dBodyID box = c.body(0, -0.25 * std::sin(slope), 0.25 * std::cos(slope),
+                             dCreateBox(c.space, 0.5, 0.5, 0.5));
+  dMatrix3 R;
+  dRFromAxisAndAngle(R, 1, 0, 0, slope);
+  dBodySetRotation(box, R);
+  c.run(60);
+  const dReal* v = dBodyGetLinearVel(box);
+  return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
+
+TEST(OdeBlockCollision, TheSurfacesFrictionHoldsABoxOnASlopeOrLetsItSlide) {
+  const double g = 9.81, slope = 20.0 * M_PI / 180.0;
+  // Sliding: a = g (sin - mu cos), 1 s.
+  EXPECT_NEAR(slideOnSlope(0.3), g * (std::sin(slope) - 0.3 * std::cos(slope)), 0.05);
+  EXPECT_LT(slideOnSlope(0.45), 1e-3);
+}
+
 // A ball thrown at 6 m/s at a wall moves 0.1 m a frame, five times the
 // 20 mm speculative margin: collided once a frame it is found 20 mm deep,
 // collided every sub-step it stops at the wall.
