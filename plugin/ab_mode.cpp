@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <mutex>
 #include <vector>
 
@@ -69,13 +70,12 @@ AbFile& abFile() {
 }
 
 // The world's bodies and joints, copied from the registry (the steps
-// below call into the plugin, which takes the registry's lock itself).
+// below call into the plugin, which takes the world's lock itself).
 void listWorld(dWorldID w, std::vector<dBodyID>& bodies, std::vector<dJointID>& joints) {
-  ode::Registry& registry = ode::Registry::instance();
-  std::lock_guard lock(registry.mutex());
   bodies.clear();
   joints.clear();
-  if (const ode::WorldRecord* record = registry.world(w)) {
+  if (const std::shared_ptr<ode::WorldRecord> record = ode::Registry::instance().world(w)) {
+    std::lock_guard lock(record->mutex);
     bodies.assign(record->bodies.begin(), record->bodies.end());
     joints.assign(record->joints.begin(), record->joints.end());
   }
@@ -174,11 +174,26 @@ int abStep(dWorldID w, dReal h, AbChoice chosen, ode::OdeStepper odeStepper) {
   BLOCKSTEP_REAL(dWorldQuickStep);
   BLOCKSTEP_REAL(dWorldStep);
   auto* fallback = odeStepper == ode::OdeStepper::Step ? real_dWorldStep : real_dWorldQuickStep;
-  // Kept between steps so that a warmed-up program allocates nothing here.
-  static thread_local std::vector<dBodyID> bodies;
-  static thread_local std::vector<dJointID> joints;
-  static thread_local std::vector<SavedBody> saved;
-  static thread_local std::vector<double> firstVelocity;  // after the first of the two
+  // Kept between steps so that a warmed-up program allocates nothing here,
+  // one set per nesting level: a moved callback may step another world.
+  struct Scratch {
+    std::vector<dBodyID> bodies;
+    std::vector<dJointID> joints;
+    std::vector<SavedBody> saved;
+    std::vector<double> firstVelocity;  // after the first of the two
+  };
+  static thread_local std::deque<Scratch> levels;  // a deque keeps references valid
+  static thread_local std::size_t depth = 0;
+  if (depth == levels.size()) levels.emplace_back();
+  Scratch& scratch = levels[depth];
+  struct Nested {
+    Nested() { ++depth; }
+    ~Nested() { --depth; }
+  } nested;
+  std::vector<dBodyID>& bodies = scratch.bodies;
+  std::vector<dJointID>& joints = scratch.joints;
+  std::vector<SavedBody>& saved = scratch.saved;
+  std::vector<double>& firstVelocity = scratch.firstVelocity;
   listWorld(w, bodies, joints);
   save(bodies, saved);
   // Quickstep shuffles its rows with ODE's random numbers: each step

@@ -5,10 +5,13 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstring>
+#include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
-#include <algorithm>
 #include "adapters/ode/body_state.h"
 #include "adapters/ode/registry.h"
 #include "adapters/ode/world_bridge.h"
@@ -31,13 +34,22 @@ struct Config {
   BridgeSettings defaults;
 };
 
-// What the API remembers of a world besides its bridge.
+// A body ODE's stepper must leave alone while it steps the islands
+// blockstep handed back.
+using HeldBody = ode::OdeBodyState;
+
+// What the API remembers of a world besides its bridge; read and changed
+// under the world's lock.
 struct WorldState {
   int stepper = dBlockStepperNone;
   int handedToOde = 0;       // bodies of runaway islands ODE stepped in the last step
   bool saidRunaway = false;  // the runaway message is printed once per world
   std::string message;
   std::vector<std::string> said;  // messages already printed for this world
+  // Per step, reused. A moved callback may step this world again, so a
+  // step takes these out while it uses them and puts them back after.
+  std::vector<dBodyID> moved, runaway;
+  std::vector<HeldBody> held;
 };
 
 Config& config() {
@@ -45,9 +57,31 @@ Config& config() {
   return c;
 }
 
-ode::PointerMap<dWorldID, WorldState>& worldStates() {
-  static auto* states = new ode::PointerMap<dWorldID, WorldState>();
+// The worlds' WorldStates. Shared pointers: a step keeps its world's while
+// the program's callbacks run, which may destroy the world.
+struct WorldStates {
+  std::mutex mutex;
+  ode::PointerMap<dWorldID, std::shared_ptr<WorldState>> map;
+};
+
+WorldStates& worldStates() {
+  static auto* states = new WorldStates();
   return *states;
+}
+
+std::shared_ptr<WorldState> stateOf(dWorldID w) {
+  WorldStates& states = worldStates();
+  std::lock_guard lock(states.mutex);
+  std::shared_ptr<WorldState>& s = states.map[w];
+  if (!s) s = std::make_shared<WorldState>();
+  return s;
+}
+
+std::shared_ptr<WorldState> findState(dWorldID w) {
+  WorldStates& states = worldStates();
+  std::lock_guard lock(states.mutex);
+  const std::shared_ptr<WorldState>* s = states.map.find(w);
+  return s ? *s : nullptr;
 }
 
 bool parseInt(const char* name, const char* text, int lo, int& out) {
@@ -198,32 +232,46 @@ __attribute__((constructor)) void announce() {
                  std::getenv("BLOCKSTEP_AB"));
 }
 
-WorldBridge& bridgeFor(dWorldID w) {
-  ode::WorldRecord& record = Registry::instance().ensureWorld(w);
-  if (!record.bridge) {
-    record.bridge = std::make_unique<WorldBridge>(w);
-    record.bridge->settings() = config().defaults;
+// A world's record and bridge (made at first use), its lock held for the
+// holder's life: other threads' worlds go on meanwhile.
+class LockedWorld {
+ public:
+  explicit LockedWorld(dWorldID w)
+      : record_(Registry::instance().ensureWorld(w)), lock_(record_->mutex) {
+    if (!record_->bridge) {
+      record_->bridge = std::make_unique<WorldBridge>(w);
+      record_->bridge->settings() = config().defaults;
+    }
   }
-  return *record.bridge;
-}
+  ode::WorldRecord& record() { return *record_; }
+  const std::shared_ptr<ode::WorldRecord>& shared() const { return record_; }
+  WorldBridge& bridge() { return *record_->bridge; }
+  BridgeSettings& settings() { return record_->bridge->settings(); }
+  void unlock() { lock_.unlock(); }
+  void lock() { lock_.lock(); }
 
-// Explicit settings, starting from what the world runs now.
-SolverSettings& explicitSettings(dWorldID w) {
-  BridgeSettings& s = bridgeFor(w).settings();
+ private:
+  std::shared_ptr<ode::WorldRecord> record_;
+  std::unique_lock<std::recursive_mutex> lock_;
+};
+
+// Explicit settings, starting from what the world runs now. The reference
+// is for the caller's own full expression, while the lock is held.
+SolverSettings& explicitSettings(LockedWorld&& world) {
+  BridgeSettings& s = world.settings();
   if (s.followQuickStepIterations) {
-    s.solver = BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(w));
+    s.solver = BridgeSettings::fromQuickStepIterations(
+        dWorldGetQuickStepNumIterations(world.record().world));
     s.followQuickStepIterations = false;
   }
   return s.solver;
 }
 
-const SolverSettings& currentSettings(dWorldID w) {
-  BridgeSettings& s = bridgeFor(w).settings();
-  if (s.followQuickStepIterations) {
-    static thread_local SolverSettings derived;
-    derived = BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(w));
-    return derived;
-  }
+SolverSettings currentSettings(dWorldID w) {
+  LockedWorld world(w);
+  const BridgeSettings& s = world.settings();
+  if (s.followQuickStepIterations)
+    return BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(w));
   return s.solver;
 }
 
@@ -255,10 +303,6 @@ void say(const char* format, ...) {
 
 namespace {
 
-// A body ODE's stepper must leave alone while it steps the islands
-// blockstep handed back.
-using HeldBody = ode::OdeBodyState;
-
 // Steps only the handed-back islands with ODE's stepper: every other
 // enabled body is disabled for the call (ODE steps enabled islands only)
 // and enabled again after; one ODE joined to a stepped island anyway is
@@ -276,16 +320,29 @@ int stepWithOde(dWorldID w, dReal h, int (*odeStep)(dWorldID, dReal), std::vecto
 
 }  // namespace
 
-int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeStepper stepper) {
-  if (!w) {
-    say("dWorldBlockStep: null world");
-    return 0;
+namespace {
+
+// The program's moved callbacks for the bodies the step moved, called
+// outside the world's lock: they may call ODE, destroy bodies or the world,
+// or step this world or another one. Each is looked up again before its
+// call.
+void callMovedCallbacks(LockedWorld& world, const std::vector<dBodyID>& moved) {
+  ode::WorldRecord& record = world.record();
+  for (dBodyID b : moved) {
+    world.lock();
+    const ode::MovedCallback callback = record.destroyed ? nullptr : record.movedCallback(b);
+    const bool destroyed = record.destroyed;
+    world.unlock();
+    if (destroyed) return;
+    if (callback) callback(b);
   }
-  Registry& registry = Registry::instance();
-  std::unique_lock lock(registry.mutex());
-  WorldBridge& bridge = bridgeFor(w);
-  WorldState& state = worldStates()[w];
-  const StepOutcome outcome = bridge.step(*registry.world(w), h, stepper);
+}
+
+int blockStepLocked(LockedWorld& world, WorldState& state, dReal h,
+                    int (*fallback)(dWorldID, dReal), ode::OdeStepper stepper) {
+  const dWorldID w = world.record().world;
+  WorldBridge& bridge = world.bridge();
+  const StepOutcome outcome = bridge.step(world.record(), h, stepper);
   state.message = bridge.message();
   state.handedToOde = 0;
   switch (outcome) {
@@ -293,18 +350,15 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeSte
       state.stepper = dBlockStepperBlockstep;
       if (!bridge.collisionNote().empty())
         sayOnce(state, w, bridge.collisionNote(), "those geoms are left out of it");
-      // The program's moved callbacks, outside the lock (they may call
-      // ODE, even destroy bodies: each is looked up again before its call).
-      static thread_local std::vector<dBodyID> moved;
-      moved = bridge.movedWithCallback();
+      std::vector<dBodyID> moved = std::move(state.moved), runaway = std::move(state.runaway);
+      std::vector<HeldBody> held = std::move(state.held);
+      moved.assign(bridge.movedWithCallback().begin(), bridge.movedWithCallback().end());
       // Islands the runaway guard put back go to ODE's own stepper.
-      static thread_local std::vector<dBodyID> runaway;
-      static thread_local std::vector<HeldBody> held;
-      runaway = bridge.runawayBodies();
+      runaway.assign(bridge.runawayBodies().begin(), bridge.runawayBodies().end());
       held.clear();
       if (!runaway.empty()) {
         std::sort(runaway.begin(), runaway.end());
-        for (dBodyID b : registry.world(w)->bodies) {
+        for (dBodyID b : world.record().bodies) {
           if (!dBodyIsEnabled(b) || std::binary_search(runaway.begin(), runaway.end(), b)) continue;
           held.push_back(HeldBody::of(b));
         }
@@ -317,16 +371,20 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeSte
               stepper == ode::OdeStepper::Step ? "dWorldStep" : "dWorldQuickStep");
         }
       }
-      lock.unlock();
+      world.unlock();
       if (!runaway.empty()) stepWithOde(w, h, fallback, held);
-      for (dBodyID b : moved) {
-        if (const ode::MovedCallback callback = registry.movedCallback(b)) callback(b);
-      }
+      callMovedCallbacks(world, moved);
+      world.lock();
+      // Their capacity, for the next step.
+      state.moved = std::move(moved);
+      state.runaway = std::move(runaway);
+      state.held = std::move(held);
       return 1;
     }
     case StepOutcome::Unsupported:
       sayOnce(state, w, bridge.message(), "this world is stepped by ODE");
       state.stepper = dBlockStepperOde;
+      world.unlock();
       return fallback(w, h);
     case StepOutcome::Invalid:
       break;
@@ -336,21 +394,46 @@ int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeSte
   return 0;
 }
 
+}  // namespace
+
+int blockStep(dWorldID w, dReal h, int (*fallback)(dWorldID, dReal), ode::OdeStepper stepper) {
+  if (!w) {
+    say("dWorldBlockStep: null world");
+    return 0;
+  }
+  return guarded("blockstep's step", 0, [&] {
+    LockedWorld world(w);
+    const std::shared_ptr<WorldState> state = stateOf(w);
+    return blockStepLocked(world, *state, h, fallback, stepper);
+  });
+}
+
 const JointState* steppedJointState(dJointID j) {
-  Registry& registry = Registry::instance();
-  std::lock_guard lock(registry.mutex());
-  const ode::JointRecord* joint = registry.joint(j);
-  if (!joint) return nullptr;
-  const WorldState* state = worldStates().find(joint->world);
-  ode::WorldRecord* world = registry.world(joint->world);
-  if (!state || state->stepper != dBlockStepperBlockstep || !world || !world->bridge)
+  const std::shared_ptr<ode::WorldRecord> world = Registry::instance().worldOfJoint(j);
+  if (!world) return nullptr;
+  std::lock_guard lock(world->mutex);
+  const std::shared_ptr<WorldState> state = findState(world->world);
+  if (!state || state->stepper != dBlockStepperBlockstep || !world->bridge || world->destroyed)
     return nullptr;
   return world->bridge->jointState(j);
 }
 
 void forgetWorld(dWorldID w) {
-  worldStates().erase(w);
+  WorldStates& states = worldStates();
+  std::lock_guard lock(states.mutex);
+  states.map.erase(w);
 }
+
+namespace {
+
+// A count setting within [lo, hi], or said and refused.
+bool inRange(const char* function, int n, int lo, int hi) {
+  if (n >= lo && n <= hi) return true;
+  say("%s(%d): expected %d to %d; call ignored", function, n, lo, hi);
+  return false;
+}
+
+}  // namespace
 
 }  // namespace blockstep::plugin
 
@@ -360,49 +443,56 @@ using namespace blockstep::plugin;
 extern "C" {
 
 int dWorldBlockStep(dWorldID w, dReal stepsize) {
-  BLOCKSTEP_REAL(dWorldQuickStep);
-  if (abMode()) return abStep(w, stepsize, AbChoice::Blockstep, ode::OdeStepper::QuickStep);
-  return blockStep(w, stepsize, real_dWorldQuickStep);
+  return guarded("dWorldBlockStep", 0, [&] {
+    BLOCKSTEP_REAL(dWorldQuickStep);
+    if (abMode()) return abStep(w, stepsize, AbChoice::Blockstep, ode::OdeStepper::QuickStep);
+    return blockStep(w, stepsize, real_dWorldQuickStep);
+  });
 }
 
 void dWorldSetBlockFollowQuickStep(dWorldID w) {
-  bridgeFor(w).settings().followQuickStepIterations = true;
+  guarded(__func__, [&] { LockedWorld(w).settings().followQuickStepIterations = true; });
 }
 void dWorldSetBlockSubsteppedSolver(dWorldID w, int substeps) {
-  explicitSettings(w) = SolverSettings::subStepped(substeps < 1 ? 1 : substeps);
+  if (!inRange(__func__, substeps, 1, SolverSettings::kMaxSubsteps)) return;
+  guarded(__func__,
+          [&] { explicitSettings(LockedWorld(w)) = SolverSettings::subStepped(substeps); });
 }
 void dWorldSetBlockPaperSolver(dWorldID w, int iterations) {
-  explicitSettings(w) = SolverSettings::paper(iterations < 1 ? 1 : iterations);
+  if (!inRange(__func__, iterations, 1, SolverSettings::kMaxIterations)) return;
+  guarded(__func__, [&] { explicitSettings(LockedWorld(w)) = SolverSettings::paper(iterations); });
 }
 
 void dWorldSetBlockIterations(dWorldID w, int n) {
-  explicitSettings(w).iterations = n < 1 ? 1 : n;
+  if (!inRange(__func__, n, 1, SolverSettings::kMaxIterations)) return;
+  guarded(__func__, [&] { explicitSettings(LockedWorld(w)).iterations = n; });
 }
 int dWorldGetBlockIterations(dWorldID w) {
-  return currentSettings(w).iterations;
+  return guarded(__func__, 0, [&] { return currentSettings(w).iterations; });
 }
 void dWorldSetBlockSubsteps(dWorldID w, int n) {
-  explicitSettings(w).substeps = n < 1 ? 1 : n;
+  if (!inRange(__func__, n, 1, SolverSettings::kMaxSubsteps)) return;
+  guarded(__func__, [&] { explicitSettings(LockedWorld(w)).substeps = n; });
 }
 int dWorldGetBlockSubsteps(dWorldID w) {
-  return currentSettings(w).substeps;
+  return guarded(__func__, 0, [&] { return currentSettings(w).substeps; });
 }
 void dWorldSetBlockRelaxIterations(dWorldID w, int n) {
-  explicitSettings(w).relaxIterations = n < 0 ? 0 : n;
+  if (!inRange(__func__, n, 0, SolverSettings::kMaxIterations)) return;
+  guarded(__func__, [&] { explicitSettings(LockedWorld(w)).relaxIterations = n; });
 }
 int dWorldGetBlockRelaxIterations(dWorldID w) {
-  return currentSettings(w).relaxIterations;
+  return guarded(__func__, 0, [&] { return currentSettings(w).relaxIterations; });
 }
 void dWorldSetBlockIslandBlockRows(dWorldID w, int rows) {
-  if (rows < 0 || rows > 4096) {
-    say("dWorldSetBlockIslandBlockRows(%d): expected 0 (off) to 4096 rows; call ignored", rows);
-    return;
-  }
-  bridgeFor(w).settings().islandBlockRows = rows;
+  if (!inRange(__func__, rows, 0, 4096)) return;
+  guarded(__func__, [&] { LockedWorld(w).settings().islandBlockRows = rows; });
 }
 int dWorldGetBlockIslandBlockRows(dWorldID w) {
-  const BridgeSettings& s = bridgeFor(w).settings();
-  return s.islandBlockRows ? *s.islandBlockRows : currentSettings(w).islandBlockRows;
+  return guarded(__func__, 0, [&] {
+    const std::optional<int> rows = LockedWorld(w).settings().islandBlockRows;
+    return rows ? *rows : currentSettings(w).islandBlockRows;
+  });
 }
 void dWorldSetBlockRunawayLimits(dWorldID w, dReal energyGain, dReal maxSpeed) {
   if (std::isnan(energyGain) || std::isnan(maxSpeed)) {
@@ -410,14 +500,18 @@ void dWorldSetBlockRunawayLimits(dWorldID w, dReal energyGain, dReal maxSpeed) {
         double(maxSpeed));
     return;
   }
-  BridgeSettings& s = bridgeFor(w).settings();
-  s.runawayEnergyGain = energyGain > 0 ? energyGain : 0.0;
-  s.runawaySpeed = maxSpeed > 0 ? maxSpeed : kInf;
+  guarded(__func__, [&] {
+    BridgeSettings& s = LockedWorld(w).settings();
+    s.runawayEnergyGain = energyGain > 0 ? energyGain : 0.0;
+    s.runawaySpeed = maxSpeed > 0 ? maxSpeed : kInf;
+  });
 }
 void dWorldGetBlockRunawayLimits(dWorldID w, dReal* energyGain, dReal* maxSpeed) {
-  const BridgeSettings& s = bridgeFor(w).settings();
-  if (energyGain) *energyGain = s.runawayEnergyGain;
-  if (maxSpeed) *maxSpeed = s.runawaySpeed;
+  guarded(__func__, [&] {
+    LockedWorld world(w);
+    if (energyGain) *energyGain = world.settings().runawayEnergyGain;
+    if (maxSpeed) *maxSpeed = world.settings().runawaySpeed;
+  });
 }
 void dWorldSetBlockContactPersistence(dWorldID w, dReal distance) {
   if (!(distance >= 0) || !std::isfinite(distance)) {
@@ -425,38 +519,46 @@ void dWorldSetBlockContactPersistence(dWorldID w, dReal distance) {
         double(distance));
     return;
   }
-  bridgeFor(w).settings().contactPersistence = distance;
+  guarded(__func__, [&] { LockedWorld(w).settings().contactPersistence = distance; });
 }
 dReal dWorldGetBlockContactPersistence(dWorldID w) {
-  return bridgeFor(w).settings().contactPersistence;
+  return guarded(__func__, dReal(0),
+                 [&] { return dReal(LockedWorld(w).settings().contactPersistence); });
 }
 void dWorldSetBlockTolerance(dWorldID w, dReal t) {
-  explicitSettings(w).tolerance = t > 0 && t < dInfinity ? t : 0;
+  guarded(__func__,
+          [&] { explicitSettings(LockedWorld(w)).tolerance = t > 0 && t < dInfinity ? t : 0; });
 }
 dReal dWorldGetBlockTolerance(dWorldID w) {
-  return currentSettings(w).tolerance;
+  return guarded(__func__, dReal(0), [&] { return dReal(currentSettings(w).tolerance); });
 }
 void dWorldSetBlockTimeBudget(dWorldID w, dReal s) {
-  explicitSettings(w).timeBudget = s > 0 && s < dInfinity ? s : 0;
+  guarded(__func__,
+          [&] { explicitSettings(LockedWorld(w)).timeBudget = s > 0 && s < dInfinity ? s : 0; });
 }
 dReal dWorldGetBlockTimeBudget(dWorldID w) {
-  return currentSettings(w).timeBudget;
+  return guarded(__func__, dReal(0), [&] { return dReal(currentSettings(w).timeBudget); });
 }
 void dWorldSetBlockWarmStarting(dWorldID w, int on) {
-  explicitSettings(w).warmStarting = on != 0;
+  guarded(__func__, [&] { explicitSettings(LockedWorld(w)).warmStarting = on != 0; });
 }
 int dWorldGetBlockWarmStarting(dWorldID w) {
-  return currentSettings(w).warmStarting ? 1 : 0;
+  return guarded(__func__, 0, [&] { return currentSettings(w).warmStarting ? 1 : 0; });
 }
 void dWorldSetBlockMode(dWorldID w, int mode) {
-  explicitSettings(w).blockMode =
-      mode == dBlockModeRowByRow ? BlockMode::RowByRow : BlockMode::Block;
+  guarded(__func__, [&] {
+    explicitSettings(LockedWorld(w)).blockMode =
+        mode == dBlockModeRowByRow ? BlockMode::RowByRow : BlockMode::Block;
+  });
 }
 int dWorldGetBlockMode(dWorldID w) {
-  return currentSettings(w).blockMode == BlockMode::RowByRow ? dBlockModeRowByRow : dBlockModeBlock;
+  return guarded(__func__, 0, [&] {
+    return currentSettings(w).blockMode == BlockMode::RowByRow ? dBlockModeRowByRow
+                                                               : dBlockModeBlock;
+  });
 }
 void dWorldSetBlockRecordResiduals(dWorldID w, int on) {
-  explicitSettings(w).recordResiduals = on != 0;
+  guarded(__func__, [&] { explicitSettings(LockedWorld(w)).recordResiduals = on != 0; });
 }
 
 void dWorldSetBlockCollision(dWorldID w, dSpaceID space, const dSurfaceParameters* surface,
@@ -469,48 +571,59 @@ void dWorldSetBlockCollision(dWorldID w, dSpaceID space, const dSurfaceParameter
     say("dWorldSetBlockCollision: unknown flags %#x; call ignored", unsigned(flags));
     return;
   }
-  std::lock_guard lock(Registry::instance().mutex());
-  BridgeSettings& s = bridgeFor(w).settings();
-  s.collisionSpace = space;
-  s.collisionSurface = space ? *surface : dSurfaceParameters{};
-  s.collideEverySubstep = (flags & dBlockCollideEverySubstep) != 0;
+  guarded(__func__, [&] {
+    BridgeSettings& s = LockedWorld(w).settings();
+    s.collisionSpace = space;
+    s.collisionSurface = space ? *surface : dSurfaceParameters{};
+    s.collideEverySubstep = (flags & dBlockCollideEverySubstep) != 0;
+  });
 }
 
 int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* out) {
-  const WorldState* state = worldStates().find(w);
-  const ode::WorldRecord* record = Registry::instance().world(w);
-  if (!out || !state || !record || !record->bridge) return 0;
-  const StepStats& s = record->bridge->stats();
-  *out = dBlockStepStats{};
-  out->stepper = state->stepper;
-  if (state->stepper == dBlockStepperBlockstep) {
-    out->substeps = s.substeps;
-    out->iterations = s.iterations;
-    out->islands = s.islands;
-    out->blocks = s.blocks;
-    out->rows = s.rows;
-    out->residualCount = static_cast<int>(s.residuals.size());
-    out->solveSeconds = s.solveSeconds;
-    out->stepSeconds = s.stepSeconds;
-    out->collideSeconds = s.collideSeconds;
-    out->handedToOde = state->handedToOde;
-  }
-  return 1;
+  return guarded(__func__, 0, [&] {
+    const std::shared_ptr<ode::WorldRecord> record = Registry::instance().world(w);
+    const std::shared_ptr<WorldState> state = findState(w);
+    if (!out || !state || !record) return 0;
+    std::lock_guard lock(record->mutex);
+    if (!record->bridge) return 0;
+    const StepStats& s = record->bridge->stats();
+    *out = dBlockStepStats{};
+    out->stepper = state->stepper;
+    if (state->stepper == dBlockStepperBlockstep) {
+      out->substeps = s.substeps;
+      out->iterations = s.iterations;
+      out->islands = s.islands;
+      out->blocks = s.blocks;
+      out->rows = s.rows;
+      out->residualCount = static_cast<int>(s.residuals.size());
+      out->solveSeconds = s.solveSeconds;
+      out->stepSeconds = s.stepSeconds;
+      out->collideSeconds = s.collideSeconds;
+      out->handedToOde = state->handedToOde;
+    }
+    return 1;
+  });
 }
 
 int dWorldGetBlockResidualHistory(dWorldID w, dReal* maxima, dReal* rms, int capacity) {
-  const ode::WorldRecord* record = Registry::instance().world(w);
-  if (!record || !record->bridge) return 0;
-  const auto& r = record->bridge->stats().residuals;
-  for (int i = 0; i < capacity && i < static_cast<int>(r.size()); ++i) {
-    if (maxima) maxima[i] = r[i].max;
-    if (rms) rms[i] = r[i].rms;
-  }
-  return static_cast<int>(r.size());
+  return guarded(__func__, 0, [&] {
+    const std::shared_ptr<ode::WorldRecord> record = Registry::instance().world(w);
+    if (!record) return 0;
+    std::lock_guard lock(record->mutex);
+    if (!record->bridge) return 0;
+    const auto& r = record->bridge->stats().residuals;
+    for (int i = 0; i < capacity && i < static_cast<int>(r.size()); ++i) {
+      if (maxima) maxima[i] = r[i].max;
+      if (rms) rms[i] = r[i].rms;
+    }
+    return static_cast<int>(r.size());
+  });
 }
 
+// The text lives in the world's state until its next step (or the world's
+// destruction), as before.
 const char* dWorldGetBlockStepMessage(dWorldID w) {
-  const WorldState* state = worldStates().find(w);
+  const std::shared_ptr<WorldState> state = findState(w);
   return state ? state->message.c_str() : "";
 }
 

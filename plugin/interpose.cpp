@@ -54,6 +54,20 @@ bool goodMass(const dMass* m) {
     say("dBodySetMass: inertia diagonal (%g, %g, %g) must be positive; call ignored", d0, d1, d2);
     return false;
   }
+  // ODE's dMassCheck, which aborts the program: the inertia about the
+  // centre of mass, I + m [c]x [c]x, must be positive definite (its leading
+  // minors positive, Sylvester's criterion).
+  const double c0 = m->c[0], c1 = m->c[1], c2 = m->c[2], mass = m->mass;
+  const double a = m->I[0] - mass * (c1 * c1 + c2 * c2), b = m->I[1] + mass * c0 * c1,
+               c = m->I[2] + mass * c0 * c2, d = m->I[5] - mass * (c0 * c0 + c2 * c2),
+               e = m->I[6] + mass * c1 * c2, f = m->I[10] - mass * (c0 * c0 + c1 * c1);
+  const double minor2 = a * d - b * b;
+  const double det = a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c);
+  if (!(a > 0 && minor2 > 0 && det > 0)) {
+    say("dBodySetMass: the inertia about the centre of mass is not positive definite; call "
+        "ignored (the body keeps its mass)");
+    return false;
+  }
   return true;
 }
 
@@ -96,7 +110,7 @@ int dWorldStep(dWorldID w, dReal stepsize) {
 void dWorldDestroy(dWorldID w) {
   BLOCKSTEP_REAL(dWorldDestroy);
   real_dWorldDestroy(w);  // calls dBodyDestroy (ours) for each body
-  Registry::instance().worldDestroyed(w);
+  guarded(__func__, [&] { Registry::instance().worldDestroyed(w); });
   forgetWorld(w);
 }
 
@@ -131,7 +145,8 @@ dGeomID dCreateConvex(dSpaceID space, const dReal* planes, unsigned planeCount, 
                       unsigned pointCount, const unsigned* polygons) {
   BLOCKSTEP_REAL(dCreateConvex);
   dGeomID g = real_dCreateConvex(space, planes, planeCount, points, pointCount, polygons);
-  blockstep::ode::ConvexGeoms::instance().remember(g, points, pointCount);
+  guarded(__func__,
+          [&] { blockstep::ode::ConvexGeoms::instance().remember(g, points, pointCount); });
   return g;
 }
 
@@ -139,12 +154,13 @@ void dGeomSetConvex(dGeomID g, const dReal* planes, unsigned planeCount, const d
                     unsigned pointCount, const unsigned* polygons) {
   BLOCKSTEP_REAL(dGeomSetConvex);
   real_dGeomSetConvex(g, planes, planeCount, points, pointCount, polygons);
-  blockstep::ode::ConvexGeoms::instance().remember(g, points, pointCount);
+  guarded(__func__,
+          [&] { blockstep::ode::ConvexGeoms::instance().remember(g, points, pointCount); });
 }
 
 void dGeomDestroy(dGeomID g) {
   BLOCKSTEP_REAL(dGeomDestroy);
-  blockstep::ode::ConvexGeoms::instance().forget(g);
+  guarded(__func__, [&] { blockstep::ode::ConvexGeoms::instance().forget(g); });
   real_dGeomDestroy(g);
 }
 
@@ -153,20 +169,20 @@ void dGeomDestroy(dGeomID g) {
 dBodyID dBodyCreate(dWorldID w) {
   BLOCKSTEP_REAL(dBodyCreate);
   dBodyID b = real_dBodyCreate(w);
-  Registry::instance().bodyCreated(w, b);
+  guarded(__func__, [&] { Registry::instance().bodyCreated(w, b); });
   return b;
 }
 
 void dBodyDestroy(dBodyID b) {
   BLOCKSTEP_REAL(dBodyDestroy);
   real_dBodyDestroy(b);
-  Registry::instance().bodyDestroyed(b);
+  guarded(__func__, [&] { Registry::instance().bodyDestroyed(b); });
 }
 
 void dBodySetMovedCallback(dBodyID b, void (*callback)(dBodyID)) {
   BLOCKSTEP_REAL(dBodySetMovedCallback);
   real_dBodySetMovedCallback(b, callback);
-  Registry::instance().movedCallbackSet(b, callback);
+  guarded(__func__, [&] { Registry::instance().movedCallbackSet(b, callback); });
 }
 
 void dBodySetMass(dBodyID b, const dMass* mass) {
@@ -205,12 +221,12 @@ void dWorldSetDamping(dWorldID w, dReal linear, dReal angular) {
 
 // ---------------------------------------------------------------- joints
 
-#define BLOCKSTEP_JOINT_CREATE(name)                     \
-  dJointID name(dWorldID w, dJointGroupID g) {           \
-    BLOCKSTEP_REAL(name);                                \
-    dJointID j = real_##name(w, g);                      \
-    Registry::instance().jointCreated(w, g, j, nullptr); \
-    return j;                                            \
+#define BLOCKSTEP_JOINT_CREATE(name)                                                 \
+  dJointID name(dWorldID w, dJointGroupID g) {                                       \
+    BLOCKSTEP_REAL(name);                                                            \
+    dJointID j = real_##name(w, g);                                                  \
+    guarded(__func__, [&] { Registry::instance().jointCreated(w, g, j, nullptr); }); \
+    return j;                                                                        \
   }
 BLOCKSTEP_JOINT_CREATE(dJointCreateBall)
 BLOCKSTEP_JOINT_CREATE(dJointCreateHinge)
@@ -233,26 +249,26 @@ BLOCKSTEP_JOINT_CREATE(dJointCreateTransmission)
 dJointID dJointCreateContact(dWorldID w, dJointGroupID g, const dContact* c) {
   BLOCKSTEP_REAL(dJointCreateContact);
   dJointID j = real_dJointCreateContact(w, g, c);
-  Registry::instance().jointCreated(w, g, j, c);
+  guarded(__func__, [&] { Registry::instance().jointCreated(w, g, j, c); });
   return j;
 }
 
 void dJointDestroy(dJointID j) {
   BLOCKSTEP_REAL(dJointDestroy);
   real_dJointDestroy(j);
-  Registry::instance().jointDestroyed(j);
+  guarded(__func__, [&] { Registry::instance().jointDestroyed(j); });
 }
 
 void dJointGroupEmpty(dJointGroupID g) {
   BLOCKSTEP_REAL(dJointGroupEmpty);
   real_dJointGroupEmpty(g);
-  Registry::instance().groupEmptied(g);
+  guarded(__func__, [&] { Registry::instance().groupEmptied(g); });
 }
 
 void dJointGroupDestroy(dJointGroupID g) {
   BLOCKSTEP_REAL(dJointGroupDestroy);
   real_dJointGroupDestroy(g);
-  Registry::instance().groupDestroyed(g);
+  guarded(__func__, [&] { Registry::instance().groupDestroyed(g); });
 }
 
 void dJointAttach(dJointID j, dBodyID b1, dBodyID b2) {
@@ -314,7 +330,7 @@ void dJointSetLMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal 
   BLOCKSTEP_REAL(dJointSetLMotorAxis);
   if (!goodAxis("dJointSetLMotorAxis", x, y, z)) return;
   real_dJointSetLMotorAxis(j, anum, rel, x, y, z);
-  Registry::instance().lmotorAxisSet(j, anum, rel);
+  guarded(__func__, [&] { Registry::instance().lmotorAxisSet(j, anum, rel); });
 }
 
 void dJointSetAMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal z) {
@@ -322,21 +338,21 @@ void dJointSetAMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal 
   if (!goodAxis("dJointSetAMotorAxis", x, y, z)) return;
   real_dJointSetAMotorAxis(j, anum, rel, x, y, z);
   const double world[3] = {x, y, z};
-  Registry::instance().amotorAxisSet(j, anum, rel, world);
+  guarded(__func__, [&] { Registry::instance().amotorAxisSet(j, anum, rel, world); });
 }
 
 void dJointSetAMotorMode(dJointID j, int mode) {
   BLOCKSTEP_REAL(dJointSetAMotorMode);
   real_dJointSetAMotorMode(j, mode);
-  Registry::instance().amotorModeSet(j);
+  guarded(__func__, [&] { Registry::instance().amotorModeSet(j); });
 }
 
 // Plane2D's motors have setters only; the registry keeps what they set.
-#define BLOCKSTEP_PLANE2D_PARAM(name, motor)                          \
-  void name(dJointID j, int parameter, dReal value) {                 \
-    BLOCKSTEP_REAL(name);                                             \
-    real_##name(j, parameter, value);                                 \
-    Registry::instance().plane2dParamSet(j, motor, parameter, value); \
+#define BLOCKSTEP_PLANE2D_PARAM(name, motor)                                                      \
+  void name(dJointID j, int parameter, dReal value) {                                             \
+    BLOCKSTEP_REAL(name);                                                                         \
+    real_##name(j, parameter, value);                                                             \
+    guarded(__func__, [&] { Registry::instance().plane2dParamSet(j, motor, parameter, value); }); \
   }
 BLOCKSTEP_PLANE2D_PARAM(dJointSetPlane2DXParam, 0)
 BLOCKSTEP_PLANE2D_PARAM(dJointSetPlane2DYParam, 1)

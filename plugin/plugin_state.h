@@ -9,6 +9,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 
 #include "adapters/ode/world_bridge.h"
 #include "core/constraints/joint.h"
@@ -61,5 +62,26 @@ const JointState* steppedJointState(dJointID j);
 
 // Prints "blockstep: <text>" on stderr unless BLOCKSTEP_QUIET is set.
 void say(const char* format, ...) __attribute__((format(printf, 1, 2)));
+
+// No exception may cross the C API (a program would die of it): a failure
+// inside, which can only be running out of memory, is said and the call
+// does nothing, giving back `failed`.
+template <class F>
+void guarded(const char* function, F&& f) noexcept {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    say("%s: %s; call ignored", function, e.what());
+  } catch (...) {
+    say("%s: unknown failure; call ignored", function);
+  }
+}
+
+template <class R, class F>
+R guarded(const char* function, R failed, F&& f) noexcept {
+  R result = failed;
+  guarded(function, [&] { result = f(); });
+  return result;
+}
 
 }  // namespace blockstep::plugin

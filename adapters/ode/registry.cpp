@@ -2,6 +2,7 @@
 
 #include "adapters/ode/world_bridge.h"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
@@ -17,110 +18,214 @@ Registry& Registry::instance() {
   return *registry;
 }
 
-WorldRecord* Registry::world(dWorldID world) {
-  std::unique_ptr<WorldRecord>* w = worlds_.find(world);
-  return w ? w->get() : nullptr;
+std::shared_ptr<WorldRecord> Registry::worldLocked(dWorldID world) {
+  std::shared_ptr<WorldRecord>* w = worlds_.find(world);
+  return w ? *w : nullptr;
 }
 
-WorldRecord& Registry::ensureWorld(dWorldID world) {
-  std::unique_ptr<WorldRecord>& w = worlds_[world];
-  if (!w) w = std::make_unique<WorldRecord>();
-  return *w;
+std::shared_ptr<WorldRecord> Registry::world(dWorldID world) {
+  std::lock_guard lock(maps_);
+  return worldLocked(world);
 }
 
-void Registry::bodyCreated(dWorldID world, dBodyID body) {
-  std::lock_guard lock(mutex_);
-  if (!world || !body) return;
-  if (bodyWorld_.find(body)) bodyDestroyed(body);  // a reused address
-  WorldRecord& w = ensureWorld(world);
-  bodyWorld_[body] = BodyRecord{world, static_cast<std::uint32_t>(w.bodies.size())};
+const std::shared_ptr<WorldRecord>& Registry::ensureLocked(dWorldID world) {
+  std::shared_ptr<WorldRecord>& w = worlds_[world];
+  if (!w) w = std::make_shared<WorldRecord>(world);
+  return w;
+}
+
+std::shared_ptr<WorldRecord> Registry::ensureWorld(dWorldID world) {
+  std::lock_guard lock(maps_);
+  return ensureLocked(world);
+}
+
+std::shared_ptr<WorldRecord> Registry::worldOfJoint(dJointID joint) {
+  std::lock_guard lock(maps_);
+  const dWorldID* w = jointWorld_.find(joint);
+  return w ? worldLocked(*w) : nullptr;
+}
+
+// ---------------------------------------------------------------- bodies
+
+void Registry::addBody(WorldRecord& w, dBodyID body) {
+  w.bodyRecords[body] = BodyRecord{static_cast<std::uint32_t>(w.bodies.size())};
   w.bodies.push_back(body);
 }
 
-void Registry::bodyDestroyed(dBodyID body) {
-  std::lock_guard lock(mutex_);
-  BodyRecord* record = bodyWorld_.find(body);
+void Registry::removeBody(WorldRecord& w, dBodyID body) {
+  BodyRecord* record = w.bodyRecords.find(body);
   if (!record) return;
-  WorldRecord* w = world(record->world);
-  if (w) {
-    if (w->bridge) w->bridge->forgetBody(body);
-    // Swap-remove, keeping the moved body's index right.
-    const dBodyID last = w->bodies.back();
-    w->bodies[record->index] = last;
-    bodyWorld_.find(last)->index = record->index;
-    w->bodies.pop_back();
+  if (w.bridge) w.bridge->forgetBody(body);
+  // Swap-remove, keeping the moved body's index right.
+  const dBodyID last = w.bodies.back();
+  w.bodies[record->index] = last;
+  w.bodyRecords.find(last)->index = record->index;
+  w.bodies.pop_back();
+  w.bodyRecords.erase(body);
+}
+
+void Registry::bodyCreated(dWorldID world, dBodyID body) {
+  if (!world || !body) return;
+  std::shared_ptr<WorldRecord> w, stale;
+  {
+    std::lock_guard lock(maps_);
+    if (const dWorldID* old = bodyWorld_.find(body)) stale = worldLocked(*old);  // a reused address
+    bodyWorld_[body] = world;
+    w = ensureLocked(world);
   }
-  bodyWorld_.erase(body);
+  if (stale) {
+    std::lock_guard lock(stale->mutex);
+    removeBody(*stale, body);
+  }
+  std::lock_guard lock(w->mutex);
+  addBody(*w, body);
+}
+
+void Registry::bodyDestroyed(dBodyID body) {
+  std::shared_ptr<WorldRecord> w;
+  {
+    std::lock_guard lock(maps_);
+    const dWorldID* world = bodyWorld_.find(body);
+    if (!world) return;
+    w = worldLocked(*world);
+    bodyWorld_.erase(body);
+  }
+  if (!w) return;
+  std::lock_guard lock(w->mutex);
+  removeBody(*w, body);
 }
 
 void Registry::movedCallbackSet(dBodyID body, MovedCallback callback) {
-  std::lock_guard lock(mutex_);
-  if (BodyRecord* r = bodyWorld_.find(body)) r->moved = callback;
+  std::shared_ptr<WorldRecord> w;
+  {
+    std::lock_guard lock(maps_);
+    const dWorldID* world = bodyWorld_.find(body);
+    if (!world) return;
+    w = worldLocked(*world);
+  }
+  if (!w) return;
+  std::lock_guard lock(w->mutex);
+  if (BodyRecord* r = w->bodyRecords.find(body)) r->moved = callback;
 }
+
+// ---------------------------------------------------------------- joints
 
 void Registry::jointCreated(dWorldID world, dJointGroupID group, dJointID joint,
                             const dContact* contact) {
-  std::lock_guard lock(mutex_);
   if (!world || !joint) return;
-  if (JointRecord* old = joints_.find(joint)) removeJoint(joint, *old);  // a reused address
-  WorldRecord& w = ensureWorld(world);
-  JointRecord& r = joints_[joint];
-  r.world = world;
+  std::shared_ptr<WorldRecord> w, stale;
+  {
+    std::lock_guard lock(maps_);
+    if (const dWorldID* old = jointWorld_.find(joint))
+      stale = worldLocked(*old);  // a reused address
+    jointWorld_[joint] = world;
+    w = ensureLocked(world);
+    if (group) {
+      std::vector<dWorldID>& worlds = groupWorlds_[group];
+      if (std::find(worlds.begin(), worlds.end(), world) == worlds.end()) worlds.push_back(world);
+    }
+  }
+  if (stale) {
+    std::lock_guard lock(stale->mutex);
+    removeJoint(*stale, joint);
+  }
+  std::lock_guard lock(w->mutex);
+  JointRecord& r = w->jointRecords[joint];
+  r = JointRecord{};
   r.group = group;
-  r.index = static_cast<std::uint32_t>(w.joints.size());
+  r.index = static_cast<std::uint32_t>(w->joints.size());
   r.hasContact = contact != nullptr;
   if (contact) r.contact = *contact;
-  w.joints.push_back(joint);
-  if (group) groups_[group].push_back(joint);
+  w->joints.push_back(joint);
+  if (group) w->groups[group].push_back(joint);
 }
 
-void Registry::removeJoint(dJointID joint, JointRecord& record) {
-  if (WorldRecord* w = world(record.world)) {
-    if (w->bridge) w->bridge->forgetJoint(joint);
-    const dJointID last = w->joints.back();
-    w->joints[record.index] = last;
-    joints_.find(last)->index = record.index;
-    w->joints.pop_back();
-  }
-  joints_.erase(joint);
+void Registry::removeJoint(WorldRecord& w, dJointID joint) {
+  JointRecord* record = w.jointRecords.find(joint);
+  if (!record) return;
+  if (w.bridge) w.bridge->forgetJoint(joint);
+  const dJointID last = w.joints.back();
+  w.joints[record->index] = last;
+  w.jointRecords.find(last)->index = record->index;
+  w.joints.pop_back();
+  w.jointRecords.erase(joint);
 }
 
 void Registry::jointDestroyed(dJointID joint) {
-  std::lock_guard lock(mutex_);
-  if (JointRecord* r = joints_.find(joint)) removeJoint(joint, *r);
+  const std::shared_ptr<WorldRecord> w = worldOfJoint(joint);
+  if (!w) return;
+  std::lock_guard lock(w->mutex);
+  const JointRecord* r = w->joint(joint);
+  if (!r || r->group) return;  // ODE leaves a grouped joint to its group
+  removeJoint(*w, joint);
+  std::lock_guard maps(maps_);
+  const dWorldID* world = jointWorld_.find(joint);
+  if (world && *world == w->world) jointWorld_.erase(joint);
+}
+
+// Each world holding joints of the group, one at a time (a world's lock is
+// never taken with the maps' held).
+void Registry::emptyGroup(dJointGroupID group, bool forget) {
+  for (std::size_t i = 0;; ++i) {
+    std::shared_ptr<WorldRecord> w;
+    {
+      std::lock_guard lock(maps_);
+      const std::vector<dWorldID>* worlds = groupWorlds_.find(group);
+      if (!worlds || i >= worlds->size()) break;
+      w = worldLocked((*worlds)[i]);
+    }
+    if (!w) continue;  // a destroyed world's joints are gone already
+    std::lock_guard lock(w->mutex);
+    std::vector<dJointID>* members = w->groups.find(group);
+    if (!members) continue;
+    {
+      std::lock_guard maps(maps_);
+      for (dJointID j : *members) {
+        // A joint whose address came back as a joint of another group
+        // must not be taken along.
+        const JointRecord* r = w->joint(j);
+        if (!r || r->group != group) continue;
+        removeJoint(*w, j);
+        const dWorldID* world = jointWorld_.find(j);
+        if (world && *world == w->world) jointWorld_.erase(j);
+      }
+    }
+    if (forget)
+      w->groups.erase(group);  // the address may come back as another group
+    else
+      members->clear();  // keeps its capacity: groups are emptied every step
+  }
 }
 
 void Registry::groupEmptied(dJointGroupID group) {
-  std::lock_guard lock(mutex_);
-  std::vector<dJointID>* members = groups_.find(group);
-  if (!members) return;
-  for (dJointID j : *members) {
-    // A joint destroyed on its own and its address reused by a joint of
-    // another group must not be taken along.
-    JointRecord* r = joints_.find(j);
-    if (r && r->group == group) removeJoint(j, *r);
-  }
-  members->clear();  // keeps its capacity: groups are emptied every step
+  emptyGroup(group, false);
 }
 
 void Registry::groupDestroyed(dJointGroupID group) {
-  std::lock_guard lock(mutex_);
-  groupEmptied(group);
-  groups_.erase(group);  // the address may come back as another group
+  emptyGroup(group, true);
+  std::lock_guard lock(maps_);
+  groupWorlds_.erase(group);
+}
+
+template <class F>
+void Registry::withJoint(dJointID joint, F&& f) {
+  const std::shared_ptr<WorldRecord> w = worldOfJoint(joint);
+  if (!w) return;
+  std::lock_guard lock(w->mutex);
+  if (JointRecord* r = w->joint(joint)) f(*r);
 }
 
 void Registry::lmotorAxisSet(dJointID joint, int axis, int rel) {
-  std::lock_guard lock(mutex_);
-  JointRecord* r = joints_.find(joint);
-  if (r && axis >= 0 && axis < 3) r->lmotorRel[axis] = rel;
+  if (axis < 0 || axis > 2) return;
+  withJoint(joint, [&](JointRecord& r) { r.lmotorRel[axis] = rel; });
 }
 
 void Registry::plane2dParamSet(dJointID joint, int motor, int parameter, double value) {
-  std::lock_guard lock(mutex_);
-  JointRecord* r = joints_.find(joint);
-  if (!r || motor < 0 || motor > 2) return;
-  if (parameter == dParamVel) r->plane2dVel[motor] = value;
-  if (parameter == dParamFMax) r->plane2dFMax[motor] = value;
+  if (motor < 0 || motor > 2) return;
+  withJoint(joint, [&](JointRecord& r) {
+    if (parameter == dParamVel) r.plane2dVel[motor] = value;
+    if (parameter == dParamFMax) r.plane2dFMax[motor] = value;
+  });
 }
 
 namespace {
@@ -153,30 +258,29 @@ void toWorld(dBodyID b, const double v[3], double w[3]) {
 // As ODE's setAxisValue: the axis, given in world coordinates, is kept in
 // the frame of the body it is relative to (rel 1: body1, 2: body2).
 void Registry::amotorAxisSet(dJointID joint, int axis, int rel, const double world[3]) {
-  std::lock_guard lock(mutex_);
-  JointRecord* r = joints_.find(joint);
-  if (!r || axis < 0 || axis > 2) return;
-  const dBodyID b1 = dJointGetBody(joint, 0), b2 = dJointGetBody(joint, 1);
-  double* local = r->amotorAxis[axis];
-  if (rel == 1 && b1) {
-    toBody(b1, world, local);
-  } else if (rel == 2 && b2) {
-    toBody(b2, world, local);
-  } else {
-    for (int i = 0; i < 3; ++i)
-      local[i] = world[i];
-  }
-  const double n = std::sqrt(local[0] * local[0] + local[1] * local[1] + local[2] * local[2]);
-  if (n > 0.0) {
-    for (int i = 0; i < 3; ++i)
-      local[i] /= n;
-  }
-  updateEulerReferences(joint, *r);
+  if (axis < 0 || axis > 2) return;
+  withJoint(joint, [&](JointRecord& r) {
+    const dBodyID b1 = dJointGetBody(joint, 0), b2 = dJointGetBody(joint, 1);
+    double* local = r.amotorAxis[axis];
+    if (rel == 1 && b1) {
+      toBody(b1, world, local);
+    } else if (rel == 2 && b2) {
+      toBody(b2, world, local);
+    } else {
+      for (int i = 0; i < 3; ++i)
+        local[i] = world[i];
+    }
+    const double n = std::sqrt(local[0] * local[0] + local[1] * local[1] + local[2] * local[2]);
+    if (n > 0.0) {
+      for (int i = 0; i < 3; ++i)
+        local[i] /= n;
+    }
+    updateEulerReferences(joint, r);
+  });
 }
 
 void Registry::amotorModeSet(dJointID joint) {
-  std::lock_guard lock(mutex_);
-  if (JointRecord* r = joints_.find(joint)) updateEulerReferences(joint, *r);
+  withJoint(joint, [&](JointRecord& r) { updateEulerReferences(joint, r); });
 }
 
 // ODE's setEulerReferenceVectors (amotor.cpp): reference2 = axis 0 (fixed
@@ -195,18 +299,31 @@ void Registry::updateEulerReferences(dJointID joint, JointRecord& r) {
   toBody(b1, w, r.eulerRef1);
 }
 
+// ---------------------------------------------------------------- worlds
+
 void Registry::worldDestroyed(dWorldID world) {
-  std::lock_guard lock(mutex_);
-  WorldRecord* w = this->world(world);
-  if (!w) return;
+  std::shared_ptr<WorldRecord> w;
+  {
+    std::lock_guard lock(maps_);
+    w = worldLocked(world);
+    if (!w) return;
+    worlds_.erase(world);
+  }
   // ODE frees the world's bodies and ungrouped joints and detaches the
   // grouped ones, which dJointGroupEmpty frees later: none of them may be
-  // read again, so all leave the registry now.
-  for (dBodyID b : w->bodies)
-    bodyWorld_.erase(b);
-  for (dJointID j : w->joints)
-    joints_.erase(j);
-  worlds_.erase(world);
+  // read again, so all leave the registry now. An address another thread
+  // has reused since for its own world stays that world's.
+  std::lock_guard lock(w->mutex);
+  w->destroyed = true;
+  std::lock_guard maps(maps_);
+  for (dBodyID b : w->bodies) {
+    const dWorldID* of = bodyWorld_.find(b);
+    if (of && *of == world) bodyWorld_.erase(b);
+  }
+  for (dJointID j : w->joints) {
+    const dWorldID* of = jointWorld_.find(j);
+    if (of && *of == world) jointWorld_.erase(j);
+  }
 }
 
 }  // namespace blockstep::ode

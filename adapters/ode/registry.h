@@ -7,6 +7,13 @@
 // Every hook is idempotent and tolerates objects it never saw: ODE calls
 // some of these entry points itself (dWorldDestroy calls dBodyDestroy), and
 // a program may have made objects before the plugin was loaded.
+//
+// Threads. ODE lets each thread step worlds of its own, so nothing here is
+// one lock for the process. The registry's maps (which world a body, joint
+// or group belongs to) have a short lock of their own; each world's record
+// has its own lock, held while that world is stepped or its records change.
+// Lock order: a thread holding a world's lock may take the maps' lock, never
+// the other way round, so a step in one world never waits on another's.
 #pragma once
 
 #include <ode/ode.h>
@@ -22,7 +29,6 @@ namespace blockstep::ode {
 class WorldBridge;
 
 struct JointRecord {
-  dWorldID world = nullptr;
   dJointGroupID group = nullptr;
   std::uint32_t index = 0;  // in its world's joint list
   bool hasContact = false;
@@ -39,13 +45,36 @@ struct JointRecord {
   double eulerRef1[3] = {}, eulerRef2[3] = {};
 };
 
-struct WorldRecord {
-  std::vector<dBodyID> bodies;          // in creation order (ODE steps them in reverse)
-  std::vector<dJointID> joints;         // every joint, contacts included
-  std::unique_ptr<WorldBridge> bridge;  // the blockstep mirror, made at the first step
+using MovedCallback = void (*)(dBodyID);
+
+struct BodyRecord {
+  std::uint32_t index = 0;        // in its world's body list
+  MovedCallback moved = nullptr;  // dBodySetMovedCallback's (ODE has no getter)
 };
 
-using MovedCallback = void (*)(dBodyID);
+// One world's objects. Read and changed only under `mutex`.
+struct WorldRecord {
+  explicit WorldRecord(dWorldID w) : world(w) {}
+
+  // Recursive: a program's moved callback or ODE's own stepper may reach
+  // the plugin again on the thread that holds it.
+  std::recursive_mutex mutex;
+  dWorldID world;
+  std::vector<dBodyID> bodies;   // in creation order (ODE steps them in reverse)
+  std::vector<dJointID> joints;  // every joint, contacts included
+  PointerMap<dBodyID, BodyRecord> bodyRecords;
+  PointerMap<dJointID, JointRecord> jointRecords;
+  PointerMap<dJointGroupID, std::vector<dJointID>> groups;  // this world's joints of each group
+  std::unique_ptr<WorldBridge> bridge;  // the blockstep mirror, made at the first step
+  bool destroyed = false;               // dWorldDestroy came: ODE freed the bodies listed here
+
+  const JointRecord* joint(dJointID j) const { return jointRecords.find(j); }
+  JointRecord* joint(dJointID j) { return jointRecords.find(j); }
+  MovedCallback movedCallback(dBodyID b) const {
+    const BodyRecord* r = bodyRecords.find(b);
+    return r ? r->moved : nullptr;
+  }
+};
 
 class Registry {
  public:
@@ -58,6 +87,7 @@ class Registry {
   void bodyCreated(dWorldID world, dBodyID body);
   void bodyDestroyed(dBodyID body);
   void jointCreated(dWorldID world, dJointGroupID group, dJointID joint, const dContact* contact);
+  // As ODE's dJointDestroy, a joint in a group stays (its group frees it).
   void jointDestroyed(dJointID joint);
   void groupEmptied(dJointGroupID group);
   void groupDestroyed(dJointGroupID group);
@@ -68,34 +98,33 @@ class Registry {
   void amotorModeSet(dJointID joint);
   void movedCallbackSet(dBodyID body, MovedCallback callback);
 
-  // nullptr for a world never seen.
-  WorldRecord* world(dWorldID world);
-  WorldRecord& ensureWorld(dWorldID world);
-  const JointRecord* joint(dJointID joint) const { return joints_.find(joint); }
-  bool knowsBody(dBodyID body) const { return bodyWorld_.find(body) != nullptr; }
-  // dBodySetMovedCallback's function (ODE has no getter), or nullptr.
-  MovedCallback movedCallback(dBodyID body) const {
-    const BodyRecord* r = bodyWorld_.find(body);
-    return r ? r->moved : nullptr;
-  }
-
-  // Hooks and steps take this lock; one step runs at a time per process.
-  std::recursive_mutex& mutex() { return mutex_; }
+  // The world's record (lock its mutex to use it), nullptr for a world
+  // never seen; ensureWorld makes it.
+  std::shared_ptr<WorldRecord> world(dWorldID world);
+  std::shared_ptr<WorldRecord> ensureWorld(dWorldID world);
+  // The record of the world a joint was created in, or nullptr.
+  std::shared_ptr<WorldRecord> worldOfJoint(dJointID joint);
 
  private:
-  void removeJoint(dJointID joint, JointRecord& record);
+  // With maps_ held.
+  std::shared_ptr<WorldRecord> worldLocked(dWorldID world);
+  const std::shared_ptr<WorldRecord>& ensureLocked(dWorldID world);
+  // With the world's lock held.
+  void addBody(WorldRecord& w, dBodyID body);
+  void removeBody(WorldRecord& w, dBodyID body);
+  void removeJoint(WorldRecord& w, dJointID joint);
+  void emptyGroup(dJointGroupID group, bool forget);
+  template <class F>
+  void withJoint(dJointID joint, F&& f);
   static void updateEulerReferences(dJointID joint, JointRecord& record);
 
-  std::recursive_mutex mutex_;
-  PointerMap<dWorldID, std::unique_ptr<WorldRecord>> worlds_;
-  struct BodyRecord {
-    dWorldID world = nullptr;
-    std::uint32_t index = 0;
-    MovedCallback moved = nullptr;
-  };
-  PointerMap<dBodyID, BodyRecord> bodyWorld_;
-  PointerMap<dJointID, JointRecord> joints_;
-  PointerMap<dJointGroupID, std::vector<dJointID>> groups_;
+  // Guards the four maps below only; never held while taking a world's lock.
+  std::mutex maps_;
+  PointerMap<dWorldID, std::shared_ptr<WorldRecord>> worlds_;
+  PointerMap<dBodyID, dWorldID> bodyWorld_;
+  PointerMap<dJointID, dWorldID> jointWorld_;
+  // The worlds holding joints of each group (one, nearly always).
+  PointerMap<dJointGroupID, std::vector<dWorldID>> groupWorlds_;
 };
 
 }  // namespace blockstep::ode

@@ -248,7 +248,7 @@ bool WorldBridge::readAll(const WorldRecord& record) {
     read.unsupported = nullptr;
     const dBodyID b1 = dJointGetBody(j, 0), b2 = dJointGetBody(j, 1);
     if ((!b1 && !b2) || !dJointIsEnabled(j)) continue;
-    const JointRecord* rec = Registry::instance().joint(j);
+    const JointRecord* rec = record.joint(j);
     if (rec && rec->hasContact) {
       const MappedContact mapped =
           mapContact(rec->contact, coreBody(b1), coreBody(b2), contactParams_);
@@ -656,7 +656,7 @@ void WorldBridge::writeBack(const WorldRecord& record) {
   movedWithCallback_.clear();
   for (dBodyID b : record.bodies) {
     if (!dBodyIsEnabled(b) || handedBack(b)) continue;
-    if (Registry::instance().movedCallback(b)) movedWithCallback_.push_back(b);
+    if (record.movedCallback(b)) movedWithCallback_.push_back(b);
     const Body& body = core_.body(mapBody(b).id);
     Vec3 v = body.linearVelocity, w = body.angularVelocity;
     const double linScale = dBodyGetLinearDamping(b);

@@ -29,6 +29,10 @@ struct SolverSettings {
   // Most sweeps of the direct preset: the bounded rows of a resting stack
   // or a limit pressed by a chain converge within this many.
   static constexpr int kDirectSweeps = 200;
+  // The most sweeps and sub-steps a step may ask for: beyond these a step
+  // of a small scene takes seconds, and the numbers are typing mistakes.
+  static constexpr int kMaxIterations = 100000;
+  static constexpr int kMaxSubsteps = 1000;
 
   // Velocity sweeps per (sub-)step: the upper bound when a tolerance or a
   // time budget is set too.

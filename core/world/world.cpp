@@ -392,9 +392,14 @@ void World::setGravity(const Vec3& g) {
 }
 
 void World::validateSettings(const SolverSettings& s) const {
-  if (s.iterations < 1) throw Error("solver iterations must be >= 1");
-  if (s.substeps < 1 || s.substeps > 1000) throw Error("sub-steps must be in [1, 1000]");
-  if (s.relaxIterations < 0) throw Error("relax iterations must be >= 0");
+  if (s.iterations < 1 || s.iterations > SolverSettings::kMaxIterations)
+    throw Error("solver iterations must be in [1, " +
+                std::to_string(SolverSettings::kMaxIterations) + "]");
+  if (s.substeps < 1 || s.substeps > SolverSettings::kMaxSubsteps)
+    throw Error("sub-steps must be in [1, " + std::to_string(SolverSettings::kMaxSubsteps) + "]");
+  if (s.relaxIterations < 0 || s.relaxIterations > SolverSettings::kMaxIterations)
+    throw Error("relax iterations must be in [0, " +
+                std::to_string(SolverSettings::kMaxIterations) + "]");
   if (s.rigidJointSoftness && !s.rigidJointSoftness->valid()) {
     throw Error("rigid joint softness is invalid (ERP in [0, 1], CFM >= 0, frequencies > 0)");
   }
@@ -441,7 +446,8 @@ void World::step(double h) {
     saved_[i] = Saved{b.position, b.linearVelocity, b.angularVelocity, b.orientation};
   }
   // Sized once; a later step with the same settings does not allocate.
-  stats_.residuals.reserve(static_cast<std::size_t>(settings_.substeps) * settings_.iterations);
+  if (settings_.recordResiduals)
+    stats_.residuals.reserve(static_cast<std::size_t>(settings_.substeps) * settings_.iterations);
   stats_.brokenJoints.reserve(joints_.size());
 
   if (collision_.everySubstep && settings_.substeps > 1) {

@@ -140,6 +140,30 @@ TEST(OdeBadInput, AbsurdStepSizesAreRefused) {
   p.expectSwingsOnItsHinge();
 }
 
+// dWorldSetBlockIterations(w, 1e9) threw std::bad_alloc through the C API
+// at the next step and killed the program (issue 14): absurd counts are
+// refused with a message and the world keeps its settings.
+TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
+  Pendulum p;
+  dWorldSetBlockSubsteppedSolver(p.s.world, 4);
+  const int iterations = dWorldGetBlockIterations(p.s.world);
+  testing::internal::CaptureStderr();
+  dWorldSetBlockIterations(p.s.world, 1000000000);
+  dWorldSetBlockSubsteps(p.s.world, 5000);
+  dWorldSetBlockRelaxIterations(p.s.world, -1);
+  dWorldSetBlockPaperSolver(p.s.world, 0);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("dWorldSetBlockIterations(1000000000): expected 1 to 100000; call ignored"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find("dWorldSetBlockSubsteps(5000): expected 1 to 1000"), std::string::npos);
+  EXPECT_NE(err.find("dWorldSetBlockRelaxIterations(-1): expected 0 to 100000"), std::string::npos);
+  EXPECT_NE(err.find("dWorldSetBlockPaperSolver(0): expected 1 to 100000"), std::string::npos);
+  EXPECT_EQ(dWorldGetBlockIterations(p.s.world), iterations);
+  EXPECT_EQ(dWorldGetBlockSubsteps(p.s.world), 4);
+  p.expectSwingsOnItsHinge();
+}
+
 TEST(OdeBadInput, BodyDestroyedMidRunLeavesItsJointDetached) {
   OdeScene s;
   dBodyID a = s.box(0.3, 0.0, 1.0);
@@ -170,6 +194,34 @@ TEST(OdeBadInput, BodyDestroyedMidRunLeavesItsJointDetached) {
   dJointGetBallAnchor(mid, a1);
   dJointGetBallAnchor2(mid, a2);
   EXPECT_LT(distance(a1, a2), 1e-3);
+}
+
+// ODE's dJointDestroy leaves a joint in a group alone (its group frees
+// it): the pendulum keeps swinging on its hinge, as under ODE's stepper.
+// blockstep used to forget the joint, and the bob fell (issue 14).
+TEST(OdeBadInput, DestroyingAGroupedJointKeepsItAsOdeDoes) {
+  dJointGroupID group = dJointGroupCreate(0);
+  double swing[2] = {0.0, 0.0};
+  for (int useOde = 0; useOde < 2; ++useOde) {
+    OdeScene s;
+    dBodyID bob = s.box(0.5, 0.0, 1.0);
+    dJointID hinge = s.add(dJointCreateHinge(s.world, group), bob, nullptr);
+    dJointSetHingeAnchor(hinge, 0.0, 0.0, 1.0);
+    dJointSetHingeAxis(hinge, 0.0, 1.0, 0.0);
+    dJointDestroy(hinge);  // a no-op in ODE
+    for (int k = 0; k < 60; ++k)
+      stepWith(useOde ? Stepper::Direct : Stepper::Block, s.world, kStep);
+    dVector3 a1, a2;
+    dJointGetHingeAnchor(hinge, a1);
+    dJointGetHingeAnchor2(hinge, a2);
+    EXPECT_LT(distance(a1, a2), useOde ? 5e-3 : 1e-3) << (useOde ? "ODE" : "blockstep");
+    swing[useOde] = dJointGetHingeAngle(hinge);
+    dJointGroupEmpty(group);  // frees the hinge
+  }
+  // A second into the swing: the same angle as ODE's direct solver.
+  EXPECT_GT(std::abs(swing[1]), 0.5);
+  EXPECT_NEAR(swing[0], swing[1], 0.02);
+  dJointGroupDestroy(group);
 }
 
 TEST(OdeBadInput, WorldDestroyedWithGroupedJointsIsForgotten) {

@@ -36,7 +36,13 @@ ODE_API void dWorldSetBlockFollowQuickStep(dWorldID w); /* the default */
 ODE_API void dWorldSetBlockSubsteppedSolver(dWorldID w, int substeps);
 ODE_API void dWorldSetBlockPaperSolver(dWorldID w, int iterations);
 
-/* Individual settings (each one leaves follow-quickstep mode). */
+/* Individual settings (each one leaves follow-quickstep mode). Counts
+ * outside 1 to 100,000 sweeps (relax: 0 to 100,000) or 1 to 1,000
+ * sub-steps are refused with a message, the world keeping its setting.
+ *
+ * Threads: as with ODE (dInitODE2, dAllocateODEDataForThread), each thread
+ * may make, set, step and destroy worlds of its own; worlds on different
+ * threads step in parallel, each under its own lock. */
 ODE_API void dWorldSetBlockIterations(dWorldID w, int iterations); /* sweeps per sub-step */
 ODE_API int dWorldGetBlockIterations(dWorldID w);
 ODE_API void dWorldSetBlockSubsteps(dWorldID w, int substeps);
