@@ -44,6 +44,7 @@ struct WorldState {
   int stepper = dBlockStepperNone;
   int handedToOde = 0;       // bodies of runaway islands ODE stepped in the last step
   bool saidRunaway = false;  // the runaway message is printed once per world
+  unsigned saidClamped = 0;  // ode::ClampedInput kinds said for this world
   std::string message;
   std::vector<std::string> said;  // messages already printed for this world
   // Per step, reused. A moved callback may step this world again, so a
@@ -84,12 +85,12 @@ std::shared_ptr<WorldState> findState(dWorldID w) {
   return s ? *s : nullptr;
 }
 
-bool parseInt(const char* name, const char* text, int lo, int& out) {
+bool parseInt(const char* name, const char* text, int lo, int& out, int hi = 100000) {
   char* end = nullptr;
   errno = 0;
   const long v = std::strtol(text, &end, 10);
-  if (errno || end == text || *end || v < lo || v > 100000) {
-    say("ignoring %s=%s: expected a whole number >= %d", name, text, lo);
+  if (errno || end == text || *end || v < lo || v > hi) {
+    say("ignoring %s=%s: expected a whole number from %d to %d", name, text, lo, hi);
     return false;
   }
   out = static_cast<int>(v);
@@ -158,7 +159,7 @@ void readEnvironment() {
   double x = 0.0;
   auto explicitly = [&s] { s.followQuickStepIterations = false; };
   if (const char* v = std::getenv("BLOCKSTEP_SUBSTEPS");
-      v && parseInt("BLOCKSTEP_SUBSTEPS", v, 1, n)) {
+      v && parseInt("BLOCKSTEP_SUBSTEPS", v, 1, n, SolverSettings::kMaxSubsteps)) {
     if (s.followQuickStepIterations) s.solver = SolverSettings::subStepped(n);
     s.solver.substeps = n;
     explicitly();
@@ -350,6 +351,14 @@ int blockStepLocked(LockedWorld& world, WorldState& state, dReal h,
       state.stepper = dBlockStepperBlockstep;
       if (!bridge.collisionNote().empty())
         sayOnce(state, w, bridge.collisionNote(), "those geoms are left out of it");
+      if (const unsigned fresh = bridge.clampedInputs() & ~state.saidClamped) {
+        state.saidClamped |= fresh;
+        for (int k = 0; k < ode::kClampedInputKinds; ++k) {
+          if (fresh & (1u << k))
+            say("world %p: %s (said once per world)", static_cast<void*>(w),
+                ode::clampedInputText(1u << k));
+        }
+      }
       std::vector<dBodyID> moved = std::move(state.moved), runaway = std::move(state.runaway);
       std::vector<HeldBody> held = std::move(state.held);
       moved.assign(bridge.movedWithCallback().begin(), bridge.movedWithCallback().end());

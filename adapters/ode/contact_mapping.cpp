@@ -1,5 +1,7 @@
 #include "adapters/ode/contact_mapping.h"
 
+#include <algorithm>
+
 namespace blockstep::ode {
 
 WorldContactParams WorldContactParams::of(dWorldID world) {
@@ -34,6 +36,11 @@ MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
   if (mode & dContactBounce) {
     c.restitution = s.bounce;
     c.restitutionThreshold = s.bounce_vel;
+    if (c.restitution < 0.0 || c.restitution > 1.0 || c.restitutionThreshold < 0.0) {
+      c.restitution = std::clamp(c.restitution, 0.0, 1.0);
+      c.restitutionThreshold = std::max(c.restitutionThreshold, 0.0);
+      out.clamped |= kClampedContactBounce;
+    }
   } else {
     c.restitution = 0.0;
     c.restitutionThreshold = 0.0;

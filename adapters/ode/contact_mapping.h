@@ -15,6 +15,7 @@
 #pragma once
 
 #include <ode/ode.h>
+#include "adapters/ode/clamped_input.h"
 
 #include <vector>
 
@@ -38,6 +39,7 @@ struct MappedContact {
   // Set when the contact uses an ODE mode the core does not model; the
   // caller must then step that world with ODE and say so.
   const char* unsupported = nullptr;
+  unsigned clamped = 0;  // ClampedInput kinds brought into range
 };
 
 // body1 and body2 as attached to the contact joint (kWorldBody for 0).

@@ -2,6 +2,8 @@
 // joints/*.cpp getInfo2 and its public getters).
 #include "adapters/ode/joint_mapping.h"
 
+#include "adapters/ode/clamped_input.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -31,6 +33,10 @@ void readAxis(dJointID j, ParamGetter get, int group, const JointWorldParams& w,
   limit.hi = std::isfinite(hi) ? hi : kFarStop;
   limit.softness = w.of(get(j, dParamStopERP + group), get(j, dParamStopCFM + group));
   limit.bounce = get(j, dParamBounce + group);
+  if (limit.bounce < 0.0 || limit.bounce > 1.0) {
+    limit.bounce = std::clamp(limit.bounce, 0.0, 1.0);
+    if (w.clamped) *w.clamped |= kClampedLimitBounce;
+  }
   motor.targetVelocity = get(j, dParamVel + group);
   motor.maxForce = get(j, dParamFMax + group);
   // A powered axis's row has ODE's dParamCFM (the world's CFM by default).

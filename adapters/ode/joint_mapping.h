@@ -43,6 +43,7 @@ struct JointWorldParams {
   // a pair stays as it is or becomes its physical spring (see world_bridge.h).
   Softness (*softness)(double erp, double cfm, const void* context) = nullptr;
   const void* context = nullptr;
+  unsigned* clamped = nullptr;  // ClampedInput kinds brought into range, or nullptr
   Softness of(double e, double c) const {
     return softness ? softness(e, c, context) : Softness::erpCfm(e, c);
   }

@@ -46,10 +46,12 @@ Vec3 inBodyFrame(dBodyID body, const Vec3& v, bool point) {
 }  // namespace
 
 SolverSettings BridgeSettings::fromQuickStepIterations(int iterations) {
-  return SolverSettings::subStepped(std::max(1, iterations / 2));
+  return SolverSettings::subStepped(std::clamp(iterations / 2, 1, SolverSettings::kMaxSubsteps));
 }
 
-WorldBridge::WorldBridge(dWorldID world) : world_(world) {}
+WorldBridge::WorldBridge(dWorldID world) : world_(world) {
+  core_.setPhysicalInertiaOnly(false);  // ODE steps any positive definite inertia
+}
 
 // ODE's rows as the program set them: a CFM above ODE's default is a
 // spring the program asked for, kept as that spring at any sub-step; a
@@ -57,6 +59,13 @@ WorldBridge::WorldBridge(dWorldID world) : world_(world) {}
 // replaces when it runs sub-steps.
 Softness WorldBridge::jointSoftness(double erp, double cfm, const void* context) {
   const auto* self = static_cast<const WorldBridge*>(context);
+  // ODE steps any finite pair (an ERP of 2 overshoots, a negative CFM
+  // stiffens past rigid): the nearest pair in range, said once.
+  if (erp < 0.0 || erp > 1.0 || cfm < 0.0) {
+    erp = std::clamp(erp, 0.0, 1.0);
+    cfm = std::max(cfm, 0.0);
+    self->clamped_ |= kClampedSoftness;
+  }
   if (cfm > kOdeDefaultCfm && erp >= 0.0 && erp <= 1.0 && std::isfinite(cfm)) {
     return Softness::fromErpCfmAt(erp, cfm, self->step_);
   }
@@ -78,9 +87,11 @@ Softness WorldBridge::contactSoftness(double erp, double cfm) const {
 SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   SolverSettings s = settings_.solver;
   if (settings_.followQuickStepIterations) {
-    s = stepper == OdeStepper::Step
-            ? SolverSettings::direct()
-            : BridgeSettings::fromQuickStepIterations(dWorldGetQuickStepNumIterations(world_));
+    const int iterations = dWorldGetQuickStepNumIterations(world_);
+    s = stepper == OdeStepper::Step ? SolverSettings::direct()
+                                    : BridgeSettings::fromQuickStepIterations(iterations);
+    if (stepper == OdeStepper::QuickStep && iterations / 2 > SolverSettings::kMaxSubsteps)
+      clamped_ |= kClampedSubsteps;
   }
   // Set apart from the solver: they hold whichever solver the step uses.
   if (settings_.islandBlockRows) s.islandBlockRows = *settings_.islandBlockRows;
@@ -125,6 +136,7 @@ void WorldBridge::forgetJoint(dJointID joint) {
 
 StepOutcome WorldBridge::step(const WorldRecord& record, double h, OdeStepper stepper) {
   message_.clear();
+  clamped_ = 0;
   if (!(h > 0.0) || !std::isfinite(h) || h > World::kMaxStep) {
     message_ = "step size " + std::to_string(h) + " s is not in (0, " +
                std::to_string(World::kMaxStep) + "]";
@@ -182,6 +194,7 @@ void WorldBridge::syncShapes() {
     const MappedContact mapped = mapContact(c, kWorldBody, kWorldBody, contactParams_);
     if (mapped.unsupported) throw Error(std::string("collision surface: ") + mapped.unsupported);
     collision.surface = mapped.manifold.surface;
+    clamped_ |= mapped.clamped;
     collision.surface.softness =
         contactSoftness(collision.surface.softness.erp, collision.surface.softness.cfm);
     collision.collideConnected = false;   // as ODE programs skip dAreConnected pairs
@@ -236,6 +249,7 @@ bool WorldBridge::readAll(const WorldRecord& record) {
   params.cfm = dWorldGetCFM(world_);
   params.softness = &WorldBridge::jointSoftness;
   params.context = this;
+  params.clamped = &clamped_;
 
   reads_.resize(record.joints.size());
   pointContacts_.clear();
@@ -257,6 +271,7 @@ bool WorldBridge::readAll(const WorldRecord& record) {
             std::string("ODE contact mode without a blockstep mapping: ") + mapped.unsupported;
         return false;
       }
+      clamped_ |= mapped.clamped;
       pointContacts_.push_back(mapped.manifold);
       if (dJointFeedback* fb = dJointGetFeedback(j)) {
         contactFeedback_.push_back({fb, b1, b2, mapped.manifold.bodyB, mapped.manifold.bodyA,

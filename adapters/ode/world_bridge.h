@@ -115,6 +115,8 @@ class WorldBridge {
   // Geoms of the collision space blockstep leaves out of its collision
   // (no core shape for their class), or "".
   const std::string& collisionNote() const { return collisionNote_; }
+  // The ClampedInput kinds the last step brought into range.
+  unsigned clampedInputs() const { return clamped_; }
 
  private:
   struct BodySleep {  // ODE's auto-disable state of one body
@@ -201,6 +203,7 @@ class WorldBridge {
   WorldContactParams contactParams_;
   double step_ = 0.0;
   std::string message_;
+  mutable unsigned clamped_ = 0;  // ClampedInput kinds, this step
 };
 
 }  // namespace blockstep::ode

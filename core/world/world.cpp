@@ -29,7 +29,8 @@ void requireFiniteVec(const Vec3& v, BodyId id, const char* what) {
   if (!v.allFinite()) throw Error(bodyName(id) + " " + what + " is not finite");
 }
 
-void validateInertia(double mass, const Mat3& inertia, const std::string& who) {
+void validateInertia(double mass, const Mat3& inertia, const std::string& who,
+                     bool physicalOnly = true) {
   if (!(mass > 0.0) || !std::isfinite(mass)) {
     throw Error(who + ": mass must be positive and finite, got " + std::to_string(mass));
   }
@@ -47,7 +48,7 @@ void validateInertia(double mass, const Mat3& inertia, const std::string& who) {
                 std::to_string(m.minCoeff()) + ")");
   }
   const double slack = 1e-6 * m.maxCoeff();
-  if (m[2] > m[0] + m[1] + slack) {
+  if (physicalOnly && m[2] > m[0] + m[1] + slack) {
     throw Error(who + ": inertia violates the triangle inequality (no rigid body has it)");
   }
 }
@@ -101,7 +102,7 @@ BodyId World::createBody(const BodyDesc& d) {
       !std::isfinite(d.angularDamping)) {
     throw Error(who + ": damping must be >= 0 and finite");
   }
-  if (!(d.maxAngularSpeed > 0.0)) throw Error(who + ": max angular speed must be > 0");
+  if (!(d.maxAngularSpeed >= 0.0)) throw Error(who + ": max angular speed must be >= 0");
 
   Body b;
   b.type = d.type;
@@ -192,7 +193,7 @@ void World::setAngularVelocity(BodyId id, const Vec3& w) {
 
 void World::setMass(BodyId id, double mass, const Mat3& inertia) {
   Body& b = mutableBody(id);
-  validateInertia(mass, inertia, bodyName(id));
+  validateInertia(mass, inertia, bodyName(id), physicalInertiaOnly_);
   b.mass = mass;
   b.inertiaBody = inertia;
   if (b.isDynamic()) {
@@ -238,7 +239,7 @@ void World::setRotationUpdate(BodyId id, const RotationUpdate& rotation) {
 }
 
 void World::setMaxAngularSpeed(BodyId id, double maxSpeed) {
-  if (!(maxSpeed > 0.0)) throw Error(bodyName(id) + " max angular speed must be > 0");
+  if (!(maxSpeed >= 0.0)) throw Error(bodyName(id) + " max angular speed must be >= 0");
   mutableBody(id).maxAngularSpeed = maxSpeed;
 }
 

@@ -45,6 +45,11 @@ class World {
   void setLinearVelocity(BodyId id, const Vec3& v);
   void setAngularVelocity(BodyId id, const Vec3& w);
   void setMass(BodyId id, double mass, const Mat3& inertia);
+  // setMass refuses an inertia no rigid body has (a principal moment larger
+  // than the other two together) unless told otherwise: ODE steps such a
+  // hand-set inertia, so its adapter takes it too. Positive definiteness is
+  // required either way.
+  void setPhysicalInertiaOnly(bool on) { physicalInertiaOnly_ = on; }
   void setType(BodyId id, BodyType type);
   void setGravityEnabled(BodyId id, bool enabled);
   void setDamping(BodyId id, double linear, double angular);
@@ -142,6 +147,7 @@ class World {
   void keepContactsForNextStep();
   void stepCollidingEachSubstep(double h);
 
+  bool physicalInertiaOnly_ = true;
   struct Saved {
     Vec3 x, v, w;
     Quat q;

@@ -1,6 +1,7 @@
 // Bad input through ODE's API: a clear message, no crash, and a world that
 // still steps. Unsupported content: said once, and ODE steps that world.
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <string>
 
@@ -162,6 +163,108 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   EXPECT_EQ(dWorldGetBlockIterations(p.s.world), iterations);
   EXPECT_EQ(dWorldGetBlockSubsteps(p.s.world), 4);
   p.expectSwingsOnItsHinge();
+}
+
+// Inputs ODE steps, which blockstep used to refuse at every step: a
+// drop-in program never checks the return value, so its world froze
+// (issue 14). Each is now taken into range, said once, and the world steps.
+TEST(OdeBadInput, InputsOdeStepsAreClampedSaidOnceAndStepped) {
+  struct Case {
+    const char* what;
+    std::function<void(Pendulum&)> apply;
+    const char* message;  // nullptr: taken as it is, nothing to say
+  };
+  auto stops = [](Pendulum& p) {
+    dJointSetHingeParam(p.hinge, dParamLoStop, -0.5);
+    dJointSetHingeParam(p.hinge, dParamHiStop, 0.5);
+  };
+  const std::vector<Case> cases = {
+      {"world ERP 2", [](Pendulum& p) { dWorldSetERP(p.s.world, 2.0); }, "an ERP outside [0, 1]"},
+      {"world CFM -1e-3", [](Pendulum& p) { dWorldSetCFM(p.s.world, -1e-3); }, "a negative CFM"},
+      {"stop bounce 1.5",
+       [&](Pendulum& p) {
+         stops(p);
+         dJointSetHingeParam(p.hinge, dParamBounce, 1.5);
+       },
+       "a joint stop's bounce outside [0, 1]"},
+      {"stop ERP -1",
+       [&](Pendulum& p) {
+         stops(p);
+         dJointSetHingeParam(p.hinge, dParamStopERP, -1.0);
+       },
+       "an ERP outside [0, 1]"},
+      {"5000 quickstep iterations",
+       [](Pendulum& p) { dWorldSetQuickStepNumIterations(p.s.world, 5000); },
+       "more than 2000 quickstep iterations are followed as 1000 sub-steps"},
+      {"max angular speed 0", [](Pendulum& p) { dBodySetMaxAngularSpeed(p.bob, 0.0); }, nullptr},
+      {"hand-set inertia (1, 1, 5)",
+       [](Pendulum& p) {
+         dMass m;
+         dBodyGetMass(p.bob, &m);
+         dMassSetParameters(&m, 1.0, 0, 0, 0, 0.01, 0.01, 0.05, 0, 0, 0);
+         dBodySetMass(p.bob, &m);
+       },
+       nullptr},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    Pendulum p;
+    c.apply(p);
+    testing::internal::CaptureStderr();
+    for (int k = 0; k < 60; ++k)
+      ASSERT_EQ(dWorldBlockStep(p.s.world, kStep), 1) << dWorldGetBlockStepMessage(p.s.world);
+    const std::string err = testing::internal::GetCapturedStderr();
+    if (c.message) {
+      const std::size_t first = err.find(c.message);
+      EXPECT_NE(first, std::string::npos) << err;
+      EXPECT_EQ(err.find(c.message, first + 1), std::string::npos) << "said twice: " << err;
+    } else {
+      EXPECT_EQ(err, "");
+    }
+    // The bob swings on its hinge, which holds.
+    dVector3 a1, a2;
+    dJointGetHingeAnchor(p.hinge, a1);
+    dJointGetHingeAnchor2(p.hinge, a2);
+    EXPECT_LT(distance(a1, a2), 5e-3);
+    EXPECT_LT(dBodyGetPosition(p.bob)[2], 0.95);
+  }
+}
+
+// A contact with bounce 1.5 (ODE adds energy at each bounce) is taken as
+// bounce 1: a ball dropped from 0.5 m comes back up to about 0.5 m, no
+// higher, and the world never freezes.
+TEST(OdeBadInput, ContactBounceAboveOneBouncesAsOne) {
+  OdeScene s;
+  dBodyID ball = s.box(0.0, 0.0, 0.6, 1.0, 0.2);
+  dJointGroupID group = dJointGroupCreate(0);
+  testing::internal::CaptureStderr();
+  double highestAfterBounce = 0.0;
+  bool bounced = false;
+  for (int k = 0; k < 120; ++k) {
+    dJointGroupEmpty(group);
+    const dReal* p = dBodyGetPosition(ball);
+    if (p[2] < 0.1 + 0.02) {
+      dContact c{};
+      c.surface.mode = dContactBounce;
+      c.surface.bounce = 1.5;
+      c.surface.bounce_vel = 0.01;
+      c.geom.pos[0] = p[0];
+      c.geom.pos[1] = p[1];
+      c.geom.normal[2] = 1.0;
+      c.geom.depth = 0.1 - p[2];
+      dJointAttach(dJointCreateContact(s.world, group, &c), ball, nullptr);
+    }
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1) << dWorldGetBlockStepMessage(s.world);
+    bounced |= dBodyGetLinearVel(ball)[2] > 0.5;
+    if (bounced)
+      highestAfterBounce = std::max(highestAfterBounce, double(dBodyGetPosition(ball)[2]));
+  }
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("a contact's bounce outside [0, 1]"), std::string::npos) << err;
+  EXPECT_TRUE(bounced);
+  EXPECT_GT(highestAfterBounce, 0.5);
+  EXPECT_LT(highestAfterBounce, 0.62);
+  dJointGroupDestroy(group);
 }
 
 TEST(OdeBadInput, BodyDestroyedMidRunLeavesItsJointDetached) {
