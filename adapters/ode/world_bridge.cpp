@@ -386,19 +386,20 @@ void WorldBridge::autoDisable(const WorldRecord& record, double h) {
     if (!enabled || !dBodyGetAutoDisableFlag(b) || dBodyGetNumJoints(b) == 0 || samples <= 0) {
       continue;
     }
-    // The sample is the body's motion over our last step (displacement /
-    // h) when we stepped it, else its velocity. The sub-stepped solver's
-    // end-of-step velocity carries the compliance of its soft rows (a box
-    // resting on three ODE contact points reports 4 mm/s and 0.036 rad/s
-    // while it does not move), which ODE's default thresholds (0.01) would
-    // never call idle.
+    // ODE samples the velocities. When we stepped the body last and the
+    // program has not moved it since, the sample is the smaller of its
+    // velocity and its motion over that step (displacement / h): the
+    // sub-stepped solver's end-of-step velocity carries the compliance of
+    // its soft rows (a box resting on three ODE contact points reports
+    // 4 mm/s and 0.036 rad/s while it does not move), which ODE's default
+    // thresholds (0.01) would never call idle, while a box set down turns
+    // 0.01 rad/s over its first step and is at rest by its end.
     Vec3 linear = vec(dBodyGetLinearVel(b)), angular = vec(dBodyGetAngularVel(b));
-    if (s.moved) {
-      const Quat q(dBodyGetQuaternion(b)[0], dBodyGetQuaternion(b)[1], dBodyGetQuaternion(b)[2],
-                   dBodyGetQuaternion(b)[3]);
-      linear = (vec(dBodyGetPosition(b)) - s.lastX) / s.lastStep;
-      const Eigen::AngleAxisd turn(q * s.lastQ.conjugate());
-      angular = turn.axis() * (turn.angle() / s.lastStep);
+    const dReal* q = dBodyGetQuaternion(b);
+    if (s.moved && vec(dBodyGetPosition(b)) == s.lastX &&
+        Quat(q[0], q[1], q[2], q[3]).coeffs() == s.lastQ.coeffs()) {
+      if (s.linearSample.squaredNorm() < linear.squaredNorm()) linear = s.linearSample;
+      if (s.angularSample.squaredNorm() < angular.squaredNorm()) angular = s.angularSample;
     }
     s.linear[s.next] = linear;
     s.angular[s.next] = angular;
@@ -681,6 +682,16 @@ void WorldBridge::writeBack(const WorldRecord& record) {
     const double angThreshold = dBodyGetAngularDampingThreshold(b);
     if (angScale != 0.0 && w.squaredNorm() > angThreshold * angThreshold) w *= 1.0 - angScale;
 
+    // The motion over this step, for auto-disable: ODE still holds the
+    // pose the step started from.
+    BodySleep& sleep = mapBody(b).sleep;
+    const dReal* startQ = dBodyGetQuaternion(b);
+    Quat turnQ = body.orientation * Quat(startQ[0], startQ[1], startQ[2], startQ[3]).conjugate();
+    if (turnQ.w() < 0.0) turnQ.coeffs() *= -1.0;  // q and -q: the same turn, the short way
+    const Eigen::AngleAxisd turn(turnQ);
+    sleep.linearSample = (body.position - vec(dBodyGetPosition(b))) / step_;
+    sleep.angularSample = turn.axis() * (turn.angle() / step_);
+
     const Quat& q = body.orientation;
     const dQuaternion oq = {q.w(), q.x(), q.y(), q.z()};
     dBodySetPosition(b, body.position.x(), body.position.y(), body.position.z());
@@ -689,7 +700,6 @@ void WorldBridge::writeBack(const WorldRecord& record) {
     dBodySetAngularVel(b, w.x(), w.y(), w.z());
     dBodySetForce(b, 0, 0, 0);
     dBodySetTorque(b, 0, 0, 0);
-    BodySleep& sleep = mapBody(b).sleep;
     sleep.moved = true;
     sleep.lastX = body.position;
     sleep.lastQ = body.orientation;

@@ -130,6 +130,8 @@ class WorldBridge {
     bool moved = false;  // lastX / lastQ hold the pose after our last step
     Vec3 lastX = Vec3::Zero();
     Quat lastQ = Quat::Identity();
+    Vec3 linearSample = Vec3::Zero();  // the motion over our last step, per second
+    Vec3 angularSample = Vec3::Zero();
     double lastStep = 0.0;
     std::vector<Vec3> linear, angular;
   };

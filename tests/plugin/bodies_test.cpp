@@ -2,6 +2,7 @@
 // thresholds, auto-disable and waking, kinematic bodies, gravity mode.
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "ode_twin.h"
 
@@ -277,6 +278,122 @@ TEST(OdeBodies, MovedCallbackRunsAfterEachStep) {
   EXPECT_EQ(movedLog.calls, 1) << "a body destroyed by a callback gets none";
   ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1);
   EXPECT_EQ(movedLog.calls, 2);
+}
+
+// Auto-disable samples a body's motion over blockstep's last step. It
+// took the pose after the step for the pose before it, so every jointed
+// body counted as idle and froze in mid-air after ODE's 10 idle steps: a
+// pendulum stopped mid-swing, a car hung in the air before landing (issue
+// 14's car "never coming to rest" was judged by such frozen bodies).
+TEST(OdeBodies, AutoDisableLeavesAMovingJointedBodyAwake) {
+  for (const Stepper stepper : {Stepper::Quick, Stepper::Block}) {
+    OdeScene s;
+    dWorldSetAutoDisableFlag(s.world, 1);
+    dBodyID bob = s.box(0.5, 0.0, 1.0);
+    dJointID hinge = s.add(dJointCreateHinge(s.world, 0), bob, nullptr);
+    dJointSetHingeAnchor(hinge, 0.0, 0.0, 1.0);
+    dJointSetHingeAxis(hinge, 0.0, 1.0, 0.0);
+    for (int k = 0; k < 30; ++k)
+      stepWith(stepper, s.world, 1.0 / 60.0);
+    EXPECT_TRUE(dBodyIsEnabled(bob)) << (stepper == Stepper::Block ? "blockstep" : "quickstep");
+    EXPECT_GT(std::abs(dJointGetHingeAngle(hinge)), 1.0);  // half a second into the swing
+  }
+}
+
+// A 2,700 kg car on four 4 kg hinge2 wheels (rear ones held straight by
+// stops, front ones free to steer) dropped 0.3 m onto the ground, ODE's
+// auto-disable on: under dWorldStep replaced by blockstep it lands, hops
+// and comes to rest as ODE's own dWorldStep does, its free wheels not
+// steering themselves.
+struct CarRun {
+  double hop = 0.0, restAt = -1.0, height = 0.0, steer = 0.0;
+};
+
+void carNear(void* data, dGeomID a, dGeomID b) {
+  auto* world = static_cast<std::pair<dWorldID, dJointGroupID>*>(data);
+  const dBodyID b1 = dGeomGetBody(a), b2 = dGeomGetBody(b);
+  if (b1 && b2 && dAreConnectedExcluding(b1, b2, dJointTypeContact)) return;  // wheel and chassis
+  dContact c[4];
+  const int n = dCollide(a, b, 4, &c[0].geom, sizeof(dContact));
+  for (int i = 0; i < n; ++i) {
+    c[i].surface.mode = dContactApprox1;
+    c[i].surface.mu = 1.0;
+    dJointAttach(dJointCreateContact(world->first, world->second, &c[i]), b1, b2);
+  }
+}
+
+CarRun dropCar() {
+  OdeScene s;
+  dWorldSetAutoDisableFlag(s.world, 1);
+  dSpaceID space = dHashSpaceCreate(0);
+  dJointGroupID contacts = dJointGroupCreate(0);
+  std::pair<dWorldID, dJointGroupID> data{s.world, contacts};
+  dCreatePlane(space, 0, 0, 1, 0);
+  const double radius = 0.35, drop = 0.3, z0 = drop + radius + 0.4;
+  dBodyID chassis = s.box(0.0, 0.0, z0, 2700.0, 1.0);
+  dMass m;
+  dMassSetBoxTotal(&m, 2700.0, 4.5, 1.8, 0.8);
+  dBodySetMass(chassis, &m);
+  dGeomID body = dCreateBox(space, 4.5, 1.8, 0.8);
+  dGeomSetBody(body, chassis);
+  dJointID hinges[4];
+  for (int i = 0; i < 4; ++i) {
+    const double x = (i < 2 ? 1.5 : -1.5), y = (i % 2 ? 1.1 : -1.1);
+    dBodyID wheel = dBodyCreate(s.world);
+    dMassSetSphereTotal(&m, 4.0, radius);
+    dBodySetMass(wheel, &m);
+    dBodySetPosition(wheel, x, y, z0 - 0.4);
+    dGeomID g = dCreateSphere(space, radius);
+    dGeomSetBody(g, wheel);
+    hinges[i] = s.add(dJointCreateHinge2(s.world, 0), chassis, wheel);
+    dJointSetHinge2Anchor(hinges[i], x, y, z0 - 0.4);
+    const dReal steer[3] = {0, 0, 1}, axle[3] = {0, 1, 0};
+    dJointSetHinge2Axes(hinges[i], steer, axle);
+    dJointSetHinge2Param(hinges[i], dParamSuspensionERP, 0.4);
+    if (i >= 2) {
+      dJointSetHinge2Param(hinges[i], dParamLoStop, 0.0);
+      dJointSetHinge2Param(hinges[i], dParamHiStop, 0.0);
+    }
+  }
+  CarRun run;
+  double lowest = 1e9;
+  bool landed = false;
+  for (int k = 0; k < 180; ++k) {
+    dSpaceCollide(space, &data, carNear);
+    dWorldStep(s.world, 1.0 / 60.0);
+    dJointGroupEmpty(contacts);
+    const double z = dBodyGetPosition(chassis)[2];
+    landed |= dBodyGetLinearVel(chassis)[2] > 0.0;
+    if (landed) {
+      lowest = std::min(lowest, z);
+      run.hop = std::max(run.hop, z - lowest);
+    }
+    for (int i = 0; i < 2; ++i)
+      run.steer = std::max(run.steer, std::abs(double(dJointGetHinge2Angle1(hinges[i]))));
+    if (run.restAt < 0 && !dBodyIsEnabled(chassis)) run.restAt = (k + 1) / 60.0;
+  }
+  run.height = dBodyGetPosition(chassis)[2];
+  dJointGroupDestroy(contacts);
+  dSpaceDestroy(space);
+  return run;
+}
+
+TEST(OdeBodies, HeavyCarOnLightWheelsLandsAndRestsAsDirectSolver) {
+  const CarRun ode = dropCar();
+  dBlockStepSetReplace("step");
+  const CarRun block = dropCar();
+  dBlockStepSetReplace("none");
+  std::printf(
+      "  hop %.4f / %.4f m, at rest at %.2f / %.2f s, height %.4f / %.4f m, steer %.3g / "
+      "%.3g rad (dWorldStep / blockstep)\n",
+      ode.hop, block.hop, ode.restAt, block.restAt, ode.height, block.height, ode.steer,
+      block.steer);
+  ASSERT_GT(ode.restAt, 0.3);  // the case: it lands and settles within the 3 s
+  EXPECT_NEAR(block.hop, ode.hop, 0.01);
+  EXPECT_GT(block.restAt, 0.3);
+  EXPECT_NEAR(block.restAt, ode.restAt, 0.2);
+  EXPECT_NEAR(block.height, ode.height, 0.01);
+  EXPECT_LT(block.steer, 0.01);
 }
 
 }  // namespace

@@ -614,9 +614,10 @@ TEST(OdeContacts, RollingBallsKeepTheirSpeedAndSlidingOnesEndAtFiveSevenths) {
       }
       const dReal* v = dBodyGetLinearVel(ball);
       const double expected = k.spinning ? k.speed : k.speed * 5.0 / 7.0;
-      std::printf("  %s, r %.2f m at %g m/s %s: %.6g m/s after %g s (expected %.6g), %.3f mm deep\n",
-                  preset, k.radius, k.speed, k.spinning ? "rolling" : "sliding",
-                  std::hypot(v[0], v[1]), k.seconds, expected, 1e3 * (k.radius - lowest));
+      std::printf(
+          "  %s, r %.2f m at %g m/s %s: %.6g m/s after %g s (expected %.6g), %.3f mm deep\n",
+          preset, k.radius, k.speed, k.spinning ? "rolling" : "sliding", std::hypot(v[0], v[1]),
+          k.seconds, expected, 1e3 * (k.radius - lowest));
       EXPECT_NEAR(std::hypot(v[0], v[1]), expected, 2e-3 * expected);
       EXPECT_LT(k.radius - lowest, 5e-4);
     }
