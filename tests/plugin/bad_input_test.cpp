@@ -197,6 +197,12 @@ TEST(OdeBadInput, InputsOdeStepsAreClampedSaidOnceAndStepped) {
        [](Pendulum& p) { dWorldSetQuickStepNumIterations(p.s.world, 5000); },
        "more than 2000 quickstep iterations are followed as 1000 sub-steps"},
       {"max angular speed 0", [](Pendulum& p) { dBodySetMaxAngularSpeed(p.bob, 0.0); }, nullptr},
+      {"motor with infinite FMax",
+       [](Pendulum& p) {
+         dJointSetHingeParam(p.hinge, dParamVel, 1.5);
+         dJointSetHingeParam(p.hinge, dParamFMax, dInfinity);
+       },
+       nullptr},
       {"hand-set inertia (1, 1, 5)",
        [](Pendulum& p) {
          dMass m;
