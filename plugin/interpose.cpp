@@ -89,8 +89,10 @@ extern "C" {
 int dWorldQuickStep(dWorldID w, dReal stepsize) {
   BLOCKSTEP_REAL(dWorldQuickStep);
   if (abMode())
-    return abStep(w, stepsize, replace().quickStep ? AbChoice::Blockstep : AbChoice::QuickStep,
-                  blockstep::ode::OdeStepper::QuickStep);
+    return guarded(__func__, 0, [&] {
+      return abStep(w, stepsize, replace().quickStep ? AbChoice::Blockstep : AbChoice::QuickStep,
+                    blockstep::ode::OdeStepper::QuickStep);
+    });
   if (replace().quickStep) return blockStep(w, stepsize, real_dWorldQuickStep);
   return real_dWorldQuickStep(w, stepsize);
 }
@@ -98,8 +100,10 @@ int dWorldQuickStep(dWorldID w, dReal stepsize) {
 int dWorldStep(dWorldID w, dReal stepsize) {
   BLOCKSTEP_REAL(dWorldStep);
   if (abMode())
-    return abStep(w, stepsize, replace().step ? AbChoice::Blockstep : AbChoice::Step,
-                  blockstep::ode::OdeStepper::Step);
+    return guarded(__func__, 0, [&] {
+      return abStep(w, stepsize, replace().step ? AbChoice::Blockstep : AbChoice::Step,
+                    blockstep::ode::OdeStepper::Step);
+    });
   if (replace().step)
     return blockStep(w, stepsize, real_dWorldStep, blockstep::ode::OdeStepper::Step);
   return real_dWorldStep(w, stepsize);

@@ -45,6 +45,22 @@ std::shared_ptr<WorldRecord> Registry::worldOfJoint(dJointID joint) {
   return w ? worldLocked(*w) : nullptr;
 }
 
+namespace {
+
+// Takes `key` out of a world's list and its records by moving the list's
+// last entry into its place, that entry's record index following it.
+template <class Key, class Record>
+void swapRemove(std::vector<Key>& list, PointerMap<Key, Record>& records, Key key) {
+  const std::uint32_t index = records.find(key)->index;
+  const Key last = list.back();
+  list[index] = last;
+  records.find(last)->index = index;
+  list.pop_back();
+  records.erase(key);
+}
+
+}  // namespace
+
 // ---------------------------------------------------------------- bodies
 
 void Registry::addBody(WorldRecord& w, dBodyID body) {
@@ -53,15 +69,9 @@ void Registry::addBody(WorldRecord& w, dBodyID body) {
 }
 
 void Registry::removeBody(WorldRecord& w, dBodyID body) {
-  BodyRecord* record = w.bodyRecords.find(body);
-  if (!record) return;
+  if (!w.bodyRecords.find(body)) return;
   if (w.bridge) w.bridge->forgetBody(body);
-  // Swap-remove, keeping the moved body's index right.
-  const dBodyID last = w.bodies.back();
-  w.bodies[record->index] = last;
-  w.bodyRecords.find(last)->index = record->index;
-  w.bodies.pop_back();
-  w.bodyRecords.erase(body);
+  swapRemove(w.bodies, w.bodyRecords, body);
 }
 
 void Registry::bodyCreated(dWorldID world, dBodyID body) {
@@ -141,14 +151,9 @@ void Registry::jointCreated(dWorldID world, dJointGroupID group, dJointID joint,
 }
 
 void Registry::removeJoint(WorldRecord& w, dJointID joint) {
-  JointRecord* record = w.jointRecords.find(joint);
-  if (!record) return;
+  if (!w.jointRecords.find(joint)) return;
   if (w.bridge) w.bridge->forgetJoint(joint);
-  const dJointID last = w.joints.back();
-  w.joints[record->index] = last;
-  w.jointRecords.find(last)->index = record->index;
-  w.joints.pop_back();
-  w.jointRecords.erase(joint);
+  swapRemove(w.joints, w.jointRecords, joint);
 }
 
 void Registry::jointDestroyed(dJointID joint) {
