@@ -191,6 +191,13 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_ISLAND_BLOCK_ROWS", v, 0, n)) {
     s.islandBlockRows = n;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_MAX_TURN");
+      v && parseReal("BLOCKSTEP_MAX_TURN", v, x)) {
+    if (x >= 0.0 && std::isfinite(x))
+      s.maxTurnPerSubstep = x;
+    else
+      say("ignoring BLOCKSTEP_MAX_TURN=%s: expected an angle >= 0 (rad; 0: off)", v);
+  }
   if (const char* v = std::getenv("BLOCKSTEP_RUNAWAY_GAIN");
       v && parseReal("BLOCKSTEP_RUNAWAY_GAIN", v, x)) {
     s.runawayEnergyGain = x;
@@ -501,6 +508,20 @@ int dWorldGetBlockIslandBlockRows(dWorldID w) {
   return guarded(__func__, 0, [&] {
     const std::optional<int> rows = LockedWorld(w).settings().islandBlockRows;
     return rows ? *rows : currentSettings(w).islandBlockRows;
+  });
+}
+void dWorldSetBlockMaxTurn(dWorldID w, dReal radians) {
+  if (!(radians >= 0.0) || !std::isfinite(radians)) {
+    say("dWorldSetBlockMaxTurn(%g): expected an angle >= 0 (rad; 0: off); call ignored",
+        double(radians));
+    return;
+  }
+  guarded(__func__, [&] { LockedWorld(w).settings().maxTurnPerSubstep = radians; });
+}
+dReal dWorldGetBlockMaxTurn(dWorldID w) {
+  return guarded(__func__, dReal(0), [&] {
+    const std::optional<double> turn = LockedWorld(w).settings().maxTurnPerSubstep;
+    return dReal(turn ? *turn : currentSettings(w).maxTurnPerSubstep);
   });
 }
 void dWorldSetBlockRunawayLimits(dWorldID w, dReal energyGain, dReal maxSpeed) {

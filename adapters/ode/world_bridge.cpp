@@ -95,6 +95,7 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   }
   // Set apart from the solver: they hold whichever solver the step uses.
   if (settings_.islandBlockRows) s.islandBlockRows = *settings_.islandBlockRows;
+  if (settings_.maxTurnPerSubstep) s.maxTurnPerSubstep = *settings_.maxTurnPerSubstep;
   s.runawayEnergyGain = settings_.runawayEnergyGain;
   s.runawaySpeed = settings_.runawaySpeed;
   return s;

@@ -55,6 +55,9 @@ struct BridgeSettings {
   // this many rows (unset: the solver's own choice), and the runaway
   // guard's limits (SolverSettings::runawayEnergyGain, runawaySpeed).
   std::optional<int> islandBlockRows;
+  // The turn per sub-step above which a step runs more sub-steps
+  // (SolverSettings::maxTurnPerSubstep; unset: the solver's own).
+  std::optional<double> maxTurnPerSubstep;
   double runawayEnergyGain = SolverSettings{}.runawayEnergyGain;
   double runawaySpeed = SolverSettings{}.runawaySpeed;
   // World::setContactPersistence: a pair ODE's collider gives one or two

@@ -33,6 +33,8 @@ struct SolverSettings {
   // of a small scene takes seconds, and the numbers are typing mistakes.
   static constexpr int kMaxIterations = 100000;
   static constexpr int kMaxSubsteps = 1000;
+  // The sub-stepped preset's turn per sub-step (maxTurnPerSubstep).
+  static constexpr double kMaxTurnPerSubstep = 0.1;
 
   // Velocity sweeps per (sub-)step: the upper bound when a tolerance or a
   // time budget is set too.
@@ -45,6 +47,16 @@ struct SolverSettings {
   // Sub-steps per step: each integrates velocities, prepares and factors
   // the blocks, warm starts, sweeps, integrates positions and relaxes.
   int substeps = 1;
+  // More sub-steps while a jointed body turns fast: a step runs as many
+  // as keep the fastest turn of any body in a constrained island (its
+  // peak over the last step's sub-steps) to at most this angle per
+  // sub-step, up to maxSubstepFactor times `substeps`. The rows are
+  // linear in the turn: a light link whipping at 240 rad/s turns 0.4 rad
+  // in a 1/600 s sub-step and its joints open by r (1 - cos 0.4), 4 mm
+  // at once. Rigid-row springs keep the stiffness of the nominal
+  // sub-step. 0: off (a fixed count).
+  double maxTurnPerSubstep = 0.0;
+  int maxSubstepFactor = 4;
   // Bias-free sweeps after each sub-step's position update: they remove
   // the velocity the position correction added, so it does not turn into
   // motion (Box2D v3's relax stage, PhysX TGS). 0: off (the paper's solver).
@@ -119,6 +131,7 @@ struct SolverSettings {
     s.substeps = substeps;
     s.iterations = 1;
     s.relaxIterations = 1;
+    s.maxTurnPerSubstep = kMaxTurnPerSubstep;
     s.warmStarting = true;
     s.rigidJointSoftness = Softness::stepSpring(0.4, 2.0);
     return s;

@@ -65,10 +65,38 @@ std::int32_t Solver::solverIndex(BodyId id) const {
   return id == kWorldBody ? dummy_ : static_cast<std::int32_t>(id);
 }
 
+int Solver::mostSubsteps(const SolverSettings& s) {
+  const int nominal = std::max(1, s.substeps);
+  if (s.maxTurnPerSubstep <= 0.0) return nominal;
+  return std::min(SolverSettings::kMaxSubsteps, nominal * std::max(1, s.maxSubstepFactor));
+}
+
+int Solver::substepsFor(const SolverSettings& s, double h) const {
+  const int nominal = std::max(1, s.substeps);
+  if (s.maxTurnPerSubstep <= 0.0) return nominal;
+  const double wanted = std::ceil(lastPeakTurnRate_ * h / s.maxTurnPerSubstep);
+  if (!(wanted > nominal)) return nominal;  // NaN too: the guard deals with it
+  return static_cast<int>(std::min<double>(wanted, mostSubsteps(s)));
+}
+
+void Solver::notePeakTurnRate() {
+  for (std::size_t i = 0; i < groupOfBody_.size(); ++i) {
+    if (groupOfBody_[i] >= 0 && groupOfBody_[i] < islandCount_)
+      peakTurnRate_ = std::max(peakTurnRate_, bodies_[i].w.squaredNorm());
+  }
+}
+
+Softness Solver::softnessOf(const Softness& soft, double h) const {
+  if (soft.mode != Softness::Mode::StepSpring || h == nominalSubstep_) return soft;
+  return Softness::spring(soft.stepFraction / nominalSubstep_, soft.dampingRatio);
+}
+
 void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats) {
   const auto start = Clock::now();
-  const int substeps = std::max(1, s.substeps);
+  const int substeps = substepsFor(s, in.h);
   const double h = in.h / substeps;
+  nominalSubstep_ = in.h / std::max(1, s.substeps);
+  peakTurnRate_ = 0.0;
   stepSize_ = in.penetrationStep > 0.0 ? in.penetrationStep : in.h;
 
   stats.substeps = substeps;
@@ -114,6 +142,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
             ? std::max(0.0, (s.timeBudget - seconds(start, solveStart)) / (substeps - sub))
             : kNoBudget;
     stats.iterations += solve(s, sub, subBudget, stats);
+    if (s.maxTurnPerSubstep > 0.0) notePeakTurnRate();
     integratePositions(in, s, h);
     relax(s, h);
     if (countEnergy) {
@@ -125,6 +154,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     storeImpulses(in, h);
     stats.solveSeconds += seconds(solveStart, Clock::now());
   }
+  lastPeakTurnRate_ = std::sqrt(peakTurnRate_);
   finish(in, stats);
   guard_.check(in.bodies, blocks_, islandStart_, islandCount_, s, stats);
   stats.stepSeconds = seconds(start, Clock::now());
@@ -316,7 +346,7 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
       // softness is relative to each row's own effective mass, which a
       // light link carrying a heavy load does not see: solved exactly, a
       // 0.1 kg chain holding 10 kg stretched 60 mm at 20 sub-steps.
-      islandRigid_ = Softness::erpCfm(h * s.rigidJointSoftness->biasRate(h), 0.0);
+      islandRigid_ = Softness::erpCfm(h * softnessOf(*s.rigidJointSoftness, h).biasRate(h), 0.0);
       for (int island = 0; island < islandCount_; ++island) {
         if (!islandBlocks_.covers(island)) continue;
         for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
@@ -493,7 +523,7 @@ void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, dou
 // physical spring (Stiffness) keeps its own rate: its force is real.
 double Solver::penetrationRate(const ConstraintRow& row, const ConstraintBlock& blk,
                                double h) const {
-  const double rate = row.softness->biasRate(h);
+  const double rate = softnessOf(*row.softness, h).biasRate(h);
   if (!blk.unilateral || row.softness->mode == Softness::Mode::Stiffness) return rate;
   return std::min(rate, row.softness->biasRate(stepSize_));
 }
@@ -541,18 +571,20 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
           const double C = std::min(0.0, row.C + row.slop);
           row.bias = std::max(penetrationRate(row, blk, h) * C, -row.maxBias);
           row.biasRelax = 0.0;
-          row.gamma = row.softness->gamma(h, kDiag);
+          row.gamma = softnessOf(*row.softness, h).gamma(h, kDiag);
         }
         // A moving surface (ODE motionN) asks for that separating speed.
         row.bias -= row.target;
         row.biasRelax -= row.target;
         break;
       }
-      case RowBias::Baumgarte:
-        row.bias = row.softness->biasRate(h) * row.C;
+      case RowBias::Baumgarte: {
+        const Softness soft = softnessOf(*row.softness, h);
+        row.bias = soft.biasRate(h) * row.C;
         row.biasRelax = 0.0;
-        row.gamma = row.softness->gamma(h, kDiag);
+        row.gamma = soft.gamma(h, kDiag);
         break;
+      }
     }
     const double k = kDiag + row.gamma;
     row.effMass = k > 0.0 ? 1.0 / k : 0.0;

@@ -57,8 +57,19 @@ class Solver {
   // Feedback and errors read the rows of the last step.
   JointFeedback feedback(const Joint& joint, double h) const;
 
+  // The most sub-steps a step with these settings runs (maxTurnPerSubstep).
+  static int mostSubsteps(const SolverSettings& s);
+
  private:
   void buildIslands(const StepInput& in);
+  // This step's sub-steps: the nominal count, or more while the last
+  // step's constrained bodies turned fast (maxTurnPerSubstep).
+  int substepsFor(const SolverSettings& s, double h) const;
+  // The fastest turn of a body in a constrained island, after a sweep.
+  void notePeakTurnRate();
+  // A row's softness as this step uses it (a StepSpring at the nominal
+  // sub-step when the step runs more).
+  Softness softnessOf(const Softness& soft, double h) const;
   void integrateVelocities(const StepInput& in, const SolverSettings& s, double h);
   void prepare(const StepInput& in, const SolverSettings& s, double h);
   void buildJointBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t j,
@@ -90,6 +101,9 @@ class Solver {
   bool islandBlocksSelected_ = false;  // chosen on the step's first sub-step
   // The rigid-row softness inside island blocks (prepare() says why).
   Softness islandRigid_;
+  double peakTurnRate_ = 0.0;      // rad/s: this step's, so far
+  double lastPeakTurnRate_ = 0.0;  // rad/s: the last step's
+  double nominalSubstep_ = 0.0;    // s: the step over the settings' sub-steps
   void coupleBoundedRows(const ConstraintBlock& blk);
   void solveCoupledRow(int rowIndex, bool useBias, ConstraintRow* eq, int ne, SolverBody& a,
                        SolverBody& b);

@@ -401,6 +401,11 @@ void World::validateSettings(const SolverSettings& s) const {
   if (s.relaxIterations < 0 || s.relaxIterations > SolverSettings::kMaxIterations)
     throw Error("relax iterations must be in [0, " +
                 std::to_string(SolverSettings::kMaxIterations) + "]");
+  if (!(s.maxTurnPerSubstep >= 0.0) || !std::isfinite(s.maxTurnPerSubstep))
+    throw Error("the turn per sub-step must be >= 0 and finite (0: a fixed sub-step count)");
+  if (s.maxSubstepFactor < 1 || s.maxSubstepFactor > SolverSettings::kMaxSubsteps)
+    throw Error("the sub-step factor must be in [1, " +
+                std::to_string(SolverSettings::kMaxSubsteps) + "]");
   if (s.rigidJointSoftness && !s.rigidJointSoftness->valid()) {
     throw Error("rigid joint softness is invalid (ERP in [0, 1], CFM >= 0, frequencies > 0)");
   }
@@ -448,7 +453,8 @@ void World::step(double h) {
   }
   // Sized once; a later step with the same settings does not allocate.
   if (settings_.recordResiduals)
-    stats_.residuals.reserve(static_cast<std::size_t>(settings_.substeps) * settings_.iterations);
+    stats_.residuals.reserve(static_cast<std::size_t>(Solver::mostSubsteps(settings_)) *
+                             settings_.iterations);
   stats_.brokenJoints.reserve(joints_.size());
 
   if (collision_.everySubstep && settings_.substeps > 1) {

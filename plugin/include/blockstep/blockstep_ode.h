@@ -65,6 +65,15 @@ ODE_API void dWorldSetBlockRecordResiduals(dWorldID w, int on);
  * dWorldStep, 0 in the paper preset). BLOCKSTEP_ISLAND_BLOCK_ROWS. */
 ODE_API void dWorldSetBlockIslandBlockRows(dWorldID w, int rows);
 ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
+/* More sub-steps while a jointed body turns fast: a step runs as many as
+ * keep the fastest turn of a constrained body (over the last step) within
+ * this angle per sub-step, up to 4 times the set count. Joints are
+ * linearized in the turn, and a light link whipping through a 0.4 rad
+ * sub-step opens its joints by millimetres at once. Holds under every
+ * solver; the default is the solver's own (0.1 rad sub-stepped, 0 (off)
+ * for dWorldStep and the paper preset). BLOCKSTEP_MAX_TURN. */
+ODE_API void dWorldSetBlockMaxTurn(dWorldID w, dReal radians);
+ODE_API dReal dWorldGetBlockMaxTurn(dWorldID w);
 /* The runaway guard: an island whose kinetic energy grows beyond what its
  * forces, motors and position corrections explain by more than
  * energyGain (default 100, growth carried over steps), or in which a body
