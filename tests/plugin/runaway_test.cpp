@@ -188,6 +188,29 @@ struct ChainRun {
   std::string said;
 };
 
+// n links of 0.1 kg (the last endMass) along x on ball joints, the
+// first pinned to the world at (0, 0, z), joints `spacing` apart: spheres
+// of radius 0.02 m centred on the next joint, or capsules along x (radius
+// 0.01 m, spacing - 0.02 m long) centred between their joints.
+void horizontalChain(OdeScene& s, int n, double spacing, double z, double endMass, bool capsules) {
+  dBodyID previous = nullptr;
+  for (int i = 0; i < n; ++i) {
+    const double mass = i == n - 1 ? endMass : 0.1;
+    dMass m;
+    if (capsules)
+      dMassSetCapsuleTotal(&m, mass, 1, 0.01, spacing - 0.02);
+    else
+      dMassSetSphereTotal(&m, mass, 0.02);
+    dBodyID link = dBodyCreate(s.world);
+    dBodySetMass(link, &m);
+    dBodySetPosition(link, spacing * (i + (capsules ? 0.5 : 1.0)), 0, z);
+    s.bodies.push_back(link);
+    dJointID ball = s.add(dJointCreateBall(s.world, 0), link, previous);
+    dJointSetBallAnchor(ball, spacing * i, 0, z);
+    previous = link;
+  }
+}
+
 // The chain that flew apart at 3e8 m/s under the plugin: 40 light spheres
 // on ball joints ending in one 100 times heavier, released horizontally,
 // dWorldQuickStep at 60 Hz with 20 iterations.
@@ -196,18 +219,7 @@ ChainRun runChain(bool blockstep, bool islandBlocks, double energyGain, double e
   ReplaceQuickStep replace(blockstep);
   OdeScene s;
   configure(s, islandBlocks, energyGain, maxSpeed);
-  dBodyID previous = nullptr;
-  for (int i = 0; i < 40; ++i) {
-    dBodyID link = dBodyCreate(s.world);
-    dMass m;
-    dMassSetSphereTotal(&m, i == 39 ? endMass : 0.1, 0.02);
-    dBodySetMass(link, &m);
-    dBodySetPosition(link, 0.05 * (i + 1), 0, 2);
-    s.bodies.push_back(link);
-    dJointID ball = s.add(dJointCreateBall(s.world, 0), previous, link);
-    dJointSetBallAnchor(ball, 0.05 * i, 0, 2);
-    previous = link;
-  }
+  horizontalChain(s, 40, 0.05, 2.0, endMass, false);
   ChainRun run;
   testing::internal::CaptureStderr();
   for (int step = 0; step < 300; ++step) {
@@ -288,18 +300,7 @@ WhipRun runWhip(bool blockstep, double maxTurn) {
   OdeScene s;
   dWorldSetQuickStepNumIterations(s.world, 20);
   if (maxTurn >= 0.0) dWorldSetBlockMaxTurn(s.world, maxTurn);
-  dBodyID previous = nullptr;
-  for (int i = 0; i < 50; ++i) {
-    dBodyID link = dBodyCreate(s.world);
-    dMass m;
-    dMassSetCapsuleTotal(&m, i == 49 ? 10.0 : 0.1, 1, 0.01, 0.08);
-    dBodySetMass(link, &m);
-    dBodySetPosition(link, 0.1 * (i + 0.5), 0, 6);
-    s.bodies.push_back(link);
-    dJointID ball = s.add(dJointCreateBall(s.world, 0), link, previous);
-    dJointSetBallAnchor(ball, 0.1 * i, 0, 6);
-    previous = link;
-  }
+  horizontalChain(s, 50, 0.1, 6.0, 10.0, true);
   WhipRun run;
   for (int frame = 0; frame < 1000; ++frame) {
     EXPECT_EQ(dWorldQuickStep(s.world, 1.0 / 60.0), 1);
