@@ -188,6 +188,15 @@ struct ChainRun {
   std::string said;
 };
 
+// How far apart a ball joint's anchors on its two bodies are.
+double ballJointGap(dJointID j) {
+  dVector3 a1, a2;
+  dJointGetBallAnchor(j, a1);
+  dJointGetBallAnchor2(j, a2);
+  const dReal d[3] = {a1[0] - a2[0], a1[1] - a2[1], a1[2] - a2[2]};
+  return norm3(d);
+}
+
 // n links of 0.1 kg (the last endMass) along x on ball joints, the
 // first pinned to the world at (0, 0, z), joints `spacing` apart: spheres
 // of radius 0.02 m centred on the next joint, or capsules along x (radius
@@ -234,13 +243,8 @@ ChainRun runChain(bool blockstep, bool islandBlocks, double energyGain, double e
       run.fastest = std::max(run.fastest, norm3(dBodyGetLinearVel(b)));
     }
   }
-  for (dJointID j : s.joints) {
-    dVector3 a1, a2;
-    dJointGetBallAnchor(j, a1);
-    dJointGetBallAnchor2(j, a2);
-    const dReal d[3] = {a1[0] - a2[0], a1[1] - a2[1], a1[2] - a2[2]};
-    run.worstGap = std::max(run.worstGap, norm3(d));
-  }
+  for (dJointID j : s.joints)
+    run.worstGap = std::max(run.worstGap, ballJointGap(j));
   run.said = testing::internal::GetCapturedStderr();
   return run;
 }
@@ -309,13 +313,8 @@ WhipRun runWhip(bool blockstep, double maxTurn) {
       EXPECT_EQ(dWorldGetBlockStepStats(s.world, &stats), 1);
       run.mostSubsteps = std::max(run.mostSubsteps, stats.substeps);
     }
-    for (dJointID j : s.joints) {
-      dVector3 a1, a2;
-      dJointGetBallAnchor(j, a1);
-      dJointGetBallAnchor2(j, a2);
-      const dReal d[3] = {a1[0] - a2[0], a1[1] - a2[1], a1[2] - a2[2]};
-      run.worstGap = std::max(run.worstGap, norm3(d));
-    }
+    for (dJointID j : s.joints)
+      run.worstGap = std::max(run.worstGap, ballJointGap(j));
     for (dBodyID b : s.bodies)
       run.finite = run.finite && finiteBody(b);
   }
