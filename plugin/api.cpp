@@ -198,6 +198,12 @@ void readEnvironment() {
     else
       say("ignoring BLOCKSTEP_MAX_TURN=%s: expected an angle >= 0 (rad; 0: off)", v);
   }
+  if (const char* v = std::getenv("BLOCKSTEP_RELAX_DRIFT")) {
+    if (std::strcmp(v, "0") == 0 || std::strcmp(v, "1") == 0)
+      s.relaxCancelsDrift = std::strcmp(v, "1") == 0;
+    else
+      say("ignoring BLOCKSTEP_RELAX_DRIFT=%s: expected 0 or 1", v);
+  }
   if (const char* v = std::getenv("BLOCKSTEP_RUNAWAY_GAIN");
       v && parseReal("BLOCKSTEP_RUNAWAY_GAIN", v, x)) {
     s.runawayEnergyGain = x;
@@ -522,6 +528,19 @@ dReal dWorldGetBlockMaxTurn(dWorldID w) {
   return guarded(__func__, dReal(0), [&] {
     const std::optional<double> turn = LockedWorld(w).settings().maxTurnPerSubstep;
     return dReal(turn ? *turn : currentSettings(w).maxTurnPerSubstep);
+  });
+}
+void dWorldSetBlockRelaxDrift(dWorldID w, int on) {
+  if (on != 0 && on != 1) {
+    say("dWorldSetBlockRelaxDrift(%d): expected 0 or 1; call ignored", on);
+    return;
+  }
+  guarded(__func__, [&] { LockedWorld(w).settings().relaxCancelsDrift = on == 1; });
+}
+int dWorldGetBlockRelaxDrift(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    const std::optional<bool> on = LockedWorld(w).settings().relaxCancelsDrift;
+    return on ? int(*on) : int(currentSettings(w).relaxCancelsDrift);
   });
 }
 void dWorldSetBlockRunawayLimits(dWorldID w, dReal energyGain, dReal maxSpeed) {

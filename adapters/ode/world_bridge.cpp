@@ -96,6 +96,7 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   // Set apart from the solver: they hold whichever solver the step uses.
   if (settings_.islandBlockRows) s.islandBlockRows = *settings_.islandBlockRows;
   if (settings_.maxTurnPerSubstep) s.maxTurnPerSubstep = *settings_.maxTurnPerSubstep;
+  if (settings_.relaxCancelsDrift) s.relaxCancelsDrift = *settings_.relaxCancelsDrift;
   s.runawayEnergyGain = settings_.runawayEnergyGain;
   s.runawaySpeed = settings_.runawaySpeed;
   return s;

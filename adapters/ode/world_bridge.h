@@ -58,6 +58,9 @@ struct BridgeSettings {
   // The turn per sub-step above which a step runs more sub-steps
   // (SolverSettings::maxTurnPerSubstep; unset: the solver's own).
   std::optional<double> maxTurnPerSubstep;
+  // Relax closes the joints' linearization drift
+  // (SolverSettings::relaxCancelsDrift; unset: the solver's own).
+  std::optional<bool> relaxCancelsDrift;
   double runawayEnergyGain = SolverSettings{}.runawayEnergyGain;
   double runawaySpeed = SolverSettings{}.runawaySpeed;
   // World::setContactPersistence: a pair ODE's collider gives one or two

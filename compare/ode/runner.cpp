@@ -81,6 +81,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.rowByRow) dWorldSetBlockMode(w, *o.rowByRow ? dBlockModeRowByRow : dBlockModeBlock);
   if (o.islandRows) dWorldSetBlockIslandBlockRows(w, *o.islandRows);
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
+  if (o.relaxDrift) dWorldSetBlockRelaxDrift(w, *o.relaxDrift ? 1 : 0);
   if (o.persistence) dWorldSetBlockContactPersistence(w, *o.persistence);
   if (o.tolerance) dWorldSetBlockTolerance(w, *o.tolerance);
   if (coreCollision(s)) {
@@ -295,6 +296,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.islandRows = whole(text, key, value, 0, 1000000);
   } else if (key == "max_turn") {
     o.maxTurn = decimal(text, key, value, 0.0, 10.0);
+  } else if (key == "relax_drift") {
+    o.relaxDrift = flag(text, key, value);
   } else if (key == "persistence") {
     o.persistence = decimal(text, key, value, 0.0, 1.0);
   } else if (key == "tolerance") {
@@ -325,6 +328,7 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"mode", "blockstep: block (one block per joint) or row (row by row)"},
           {"island_rows", "blockstep: island blocks up to this many joint rows, 0: off"},
           {"max_turn", "blockstep: more sub-steps past this turn per sub-step, rad, 0: off"},
+          {"relax_drift", "blockstep: relax closes the joints' linearization drift, 0 or 1"},
           {"persistence", "blockstep: contact persistence, m, 0: off"},
           {"tolerance", "blockstep: stop sweeping below this residual, m/s, 0: off"},
           {"collision",

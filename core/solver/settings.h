@@ -61,6 +61,13 @@ struct SolverSettings {
   // the velocity the position correction added, so it does not turn into
   // motion (Box2D v3's relax stage, PhysX TGS). 0: off (the paper's solver).
   int relaxIterations = 0;
+  // Relax leaves each joint equality row the velocity that closes the
+  // drift of the rows' linearization over the next sub-step
+  // (Solver::relaxAgainstDrift says why). Off (relax targets J v = 0), a
+  // turning chain loses about (w h)^2 of its kinetic energy a sub-step;
+  // on, it keeps it, but a whipping chain's joints open wider and it can
+  // gain energy (the drift is measured one sub-step late). Off by default.
+  bool relaxCancelsDrift = false;
   // Start each solve from the last one's impulses, scaled by the step
   // ratio. Off in the paper preset: with plain Baumgarte (ERP) rows and
   // sweeps that have not converged (high mass ratios, stiff lattices) the

@@ -4,6 +4,7 @@
 // once a scene has warmed up).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -92,6 +93,7 @@ class Solver {
   int solve(const SolverSettings& s, int substep, double deadline, StepStats& stats);
   void integratePositions(const StepInput& in, const SolverSettings& s, double h);
   static Quat turn(const Quat& q, const RotationUpdate& r, const Vec3& w, double h);
+  void relaxAgainstDrift(const StepInput& in, double h);
   void relax(const SolverSettings& s, double h);
   void storeImpulses(const StepInput& in, double h);
   void finish(const StepInput& in, StepStats& stats);
@@ -118,6 +120,7 @@ class Solver {
   std::vector<Vec3> gyroOffset_;  // midpoint minus end angular velocity (gyroscopic)
   std::vector<ConstraintBlock> blocks_;
   std::vector<ConstraintRow> rows_;
+  std::array<ConstraintRow, kMaxJointSlots> movedRows_;  // a joint's rows at the new pose
   IslandBlocks islandBlocks_;  // islands whose joint equality rows are one block
   // How a bounded row's impulse moves the bodies and its joint's equality
   // impulses when solved in the equality block's null space (solver.cpp,

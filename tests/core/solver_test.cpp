@@ -3,6 +3,7 @@
 // starting, and bad input.
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 #include "compare/native/scenes.h"
 #include "core/solver/island_block.h"
@@ -459,6 +460,75 @@ TEST(Solver, IslandBlockTurnsALightAnchorWithHeavyParticlesAsOneBody) {
   // dWorldStep reaches 4e-4 rad/s on demo_I (h = 0.03, 100 steps).
   EXPECT_LT(island, 1e-3);
   EXPECT_LT(island, 0.1 * joints) << "the island block is what makes the star rigid";
+}
+
+// A 1 m pendulum (a 1 kg ball of radius 5 cm on a ball joint) released
+// from horizontal, 10 s at 60 Hz, sub-stepped: the energy it keeps and
+// its period against the closed form of a physical pendulum,
+// T = 4 sqrt(I_p / (m g L)) K(sin(theta0 / 2)).
+struct PendulumRun {
+  double energyKept = 0.0;  // lowest energy over the run, as a share of m g L
+  double period = 0.0;      // s, mean over the whole swings seen
+  double worstGap = 0.0;    // m
+};
+
+PendulumRun swingPendulum(const SolverSettings& settings) {
+  World world;
+  world.setSettings(settings);
+  const double mass = 1.0, radius = 0.05, length = 1.0, g = 9.81;
+  const BodyId bob = world.createBody(test::sphereBody(Vec3(length, 0, 0), mass, radius));
+  BallJointDesc ball;
+  ball.common.bodyA = kWorldBody;
+  ball.common.bodyB = bob;
+  ball.anchor = Vec3::Zero();
+  const JointId joint = world.createJoint(ball);
+  const double inertia = 0.4 * mass * radius * radius;
+  auto energy = [&] {  // 0 at the start: at rest, level with the pivot
+    const Body& b = world.body(bob);
+    return 0.5 * mass * b.linearVelocity.squaredNorm() +
+           0.5 * inertia * b.angularVelocity.squaredNorm() + mass * g * b.position.z();
+  };
+  PendulumRun run;
+  double lowest = 0.0, lastX = length, firstCrossing = -1.0, lastCrossing = -1.0;
+  int crossings = 0;
+  const double h = 1.0 / 60.0;
+  for (int f = 1; f <= 600; ++f) {
+    world.step(h);
+    lowest = std::min(lowest, energy());
+    run.worstGap = std::max(run.worstGap, world.jointError(joint).linear);
+    // The bob passes x = 0 going the way it started (-x) once a period.
+    const double x = world.body(bob).position.x();
+    if (lastX > 0.0 && x <= 0.0) {
+      const double t = (f - 1 + lastX / (lastX - x)) * h;
+      if (firstCrossing < 0.0) firstCrossing = t;
+      lastCrossing = t;
+      ++crossings;
+    }
+    lastX = x;
+  }
+  run.energyKept = 1.0 + lowest / (mass * g * length);
+  run.period = crossings > 1 ? (lastCrossing - firstCrossing) / (crossings - 1) : 0.0;
+  return run;
+}
+
+TEST(Solver, SubsteppedPendulumKeepsItsEnergyAndTheClosedFormPeriod) {
+  const double mass = 1.0, radius = 0.05, length = 1.0, g = 9.81;
+  const double pivotInertia = 0.4 * mass * radius * radius + mass * length * length;
+  const double K = 1.8540746773013719;  // K(sin 45 deg), the complete elliptic integral
+  const double closedForm = 4.0 * std::sqrt(pivotInertia / (mass * g * length)) * K;
+  // Without relax sweeps: the sub-stepped preset's relax drains this
+  // pendulum (its joint opens 69 mm and it keeps 9% of its energy: a
+  // known defect, see the README's relax paragraph).
+  SolverSettings s = SolverSettings::subStepped(10);
+  s.relaxIterations = 0;
+  const PendulumRun run = swingPendulum(s);
+  std::printf(
+      "1 m pendulum from horizontal, 10 s, 10 sub-steps without relax: energy kept %.4f, period "
+      "%.4f s (closed form %.4f s), joint gap %.3g mm\n",
+      run.energyKept, run.period, closedForm, 1e3 * run.worstGap);
+  EXPECT_GT(run.energyKept, 0.98);
+  EXPECT_NEAR(run.period, closedForm, 0.003 * closedForm);
+  EXPECT_LT(run.worstGap, 0.01);
 }
 
 // The chain that flew apart at 3e8 m/s under the plugin: 40 light spheres

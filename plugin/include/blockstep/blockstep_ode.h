@@ -74,6 +74,15 @@ ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
  * for dWorldStep and the paper preset). BLOCKSTEP_MAX_TURN. */
 ODE_API void dWorldSetBlockMaxTurn(dWorldID w, dReal radians);
 ODE_API dReal dWorldGetBlockMaxTurn(dWorldID w);
+/* 1: relax leaves each joint the velocity that closes the drift of its
+ * linearized rows over the next sub-step (r (w h)^2 / 2 for a joint
+ * turning at w), and a swinging chain keeps its energy (PyODE's tutorial2:
+ * 99.6% over 10 s, against 84%); but a whipping chain's joints open wider
+ * and can gain energy. 0 (default): relax targets J v = 0 and a chain
+ * loses about (w h)^2 of its kinetic energy a sub-step. Holds under every
+ * solver that relaxes. BLOCKSTEP_RELAX_DRIFT=0|1. */
+ODE_API void dWorldSetBlockRelaxDrift(dWorldID w, int on);
+ODE_API int dWorldGetBlockRelaxDrift(dWorldID w);
 /* The runaway guard: an island whose kinetic energy grows beyond what its
  * forces, motors and position corrections explain by more than
  * energyGain (default 100, growth carried over steps), or in which a body
