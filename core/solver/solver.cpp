@@ -59,6 +59,21 @@ double reportedResidual(const ConstraintRow& row, double lo, double hi, const So
   return std::abs(r);
 }
 
+// A joint's rows at its bodies' current pose, written to `rows` (room for
+// kMaxJointSlots) with the joint state given.
+RowWriter writeJointRows(const StepInput& in, const Joint& joint, JointState& state,
+                         ConstraintRow* rows) {
+  const JointCommon& c = common(joint.desc);
+  const Body& A = c.bodyA == kWorldBody ? in.worldBody : in.bodies[c.bodyA];
+  const Body& B = c.bodyB == kWorldBody ? in.worldBody : in.bodies[c.bodyB];
+  const JointPose pose =
+      JointPose::make(A.position, A.orientation, B.position, B.orientation, joint.frames);
+  RowWriter out(rows);
+  std::visit([&](const auto& d) { buildJointRows(d, pose, state, out); }, joint.desc);
+  out.finish();
+  return out;
+}
+
 }  // namespace
 
 std::int32_t Solver::solverIndex(BodyId id) const {
@@ -370,14 +385,8 @@ void Solver::buildJointBlock(const StepInput& in, const SolverSettings& s, doubl
                              ConstraintBlock& blk) {
   Joint& joint = in.joints[j];
   const JointCommon& c = common(joint.desc);
-  const Body& A = c.bodyA == kWorldBody ? in.worldBody : in.bodies[c.bodyA];
-  const Body& B = c.bodyB == kWorldBody ? in.worldBody : in.bodies[c.bodyB];
-  const JointPose pose =
-      JointPose::make(A.position, A.orientation, B.position, B.orientation, joint.frames);
   ConstraintRow* rows = &rows_[blk.firstRow];
-  RowWriter out(rows);
-  std::visit([&](const auto& d) { buildJointRows(d, pose, joint.state, out); }, joint.desc);
-  out.finish();
+  const RowWriter out = writeJointRows(in, joint, joint.state, rows);
   blk.bodyA = solverIndex(c.bodyA);
   blk.bodyB = solverIndex(c.bodyB);
   blk.joint = j;
@@ -943,8 +952,8 @@ Quat Solver::turn(const Quat& q, const RotationUpdate& r, const Vec3& w, double 
 // the outward part of the motion out instead: each sub-step lost about
 // (w h)^2 of a turning chain's kinetic energy (PyODE's tutorial2 double
 // pendulum kept 84% of its energy over 10 s at 10 sub-steps, ODE's
-// quickstep with sub-steps 97%). Relax now leaves each joint equality
-// row the velocity that closes the drift it just measured, C at the new
+// quickstep with sub-steps 97%). With relaxCancelsDrift, relax leaves
+// each joint equality row the velocity that closes the drift it just measured, C at the new
 // pose minus C + h J v (what the rows predicted), over the next sub-step:
 // the rebuilt velocity turns with the joint instead of losing its outward
 // part. Relax still removes the correction velocity exactly (the same
@@ -956,14 +965,8 @@ void Solver::relaxAgainstDrift(const StepInput& in, double h) {
   for (const ConstraintBlock& blk : blocks_) {
     if (blk.joint < 0 || blk.equality == 0) continue;
     const Joint& joint = in.joints[blk.joint];
-    const JointCommon& c = common(joint.desc);
-    const Body& A = c.bodyA == kWorldBody ? in.worldBody : in.bodies[c.bodyA];
-    const Body& B = c.bodyB == kWorldBody ? in.worldBody : in.bodies[c.bodyB];
-    const JointPose pose =
-        JointPose::make(A.position, A.orientation, B.position, B.orientation, joint.frames);
     JointState state = joint.state;  // rows at a pose the step does not keep
-    RowWriter out(movedRows_.data());
-    std::visit([&](const auto& d) { buildJointRows(d, pose, state, out); }, joint.desc);
+    const RowWriter out = writeJointRows(in, joint, state, movedRows_.data());
     if (out.equalityCount() != blk.equality) continue;
     const SolverBody& a = bodies_[blk.bodyA];
     const SolverBody& b = bodies_[blk.bodyB];
