@@ -63,7 +63,8 @@ Scene::~Scene() {
 
 dBodyID Scene::addBody(const dMass& mass, double x, double y, double z) {
   dBodyID b = dBodyCreate(world_);
-  dBodySetMass(b, &mass);
+  // A zero mass: the caller sets it once a shape gives it (convexBody).
+  if (mass.mass > 0.0) dBodySetMass(b, &mass);
   dBodySetPosition(b, x, y, z);
   bodies_.push_back(b);
   return b;

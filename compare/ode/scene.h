@@ -86,6 +86,8 @@ class Scene {
 
   // Building (scenes.cpp).
   void setName(std::string name) { name_ = std::move(name); }
+  // A body of `mass` at (x, y, z); a zero mass leaves ODE's default for the
+  // caller to replace.
   dBodyID addBody(const dMass& mass, double x, double y, double z);
   void addGeom(dGeomID geom, dBodyID body);
   // A convex geom, the hull of `points` (x, y, z each, in the body's
