@@ -111,6 +111,8 @@ struct Softness {
     const double hw = omegaH(h);
     return kDiag / (hw * (hw + 2.0 * dampingRatio));
   }
+  // Whether gamma scales with the row's K (a spring relative to its mass).
+  bool massRelative() const { return mode == Mode::Spring || mode == Mode::StepSpring; }
   // h times the angular frequency.
   double omegaH(double h) const {
     return 2.0 * kPi * (mode == Mode::StepSpring ? stepFraction : hertz * h);

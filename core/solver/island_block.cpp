@@ -106,7 +106,7 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
 }
 
 void IslandBlocks::factorAll(const std::vector<ConstraintBlock>& blocks,
-                             const std::vector<ConstraintRow>& rows,
+                             std::vector<ConstraintRow>& rows,
                              const std::vector<SolverBody>& bodies) {
   // Both grow only while warming up.
   if (factor_.size() < factorSize_) factor_.resize(factorSize_);
@@ -265,7 +265,7 @@ void IslandBlocks::solveInPlace(const Island& isl, double* x) const {
 // bounded row's joint), w = -K^-1 u, and the Schur complement
 // J_b M^-1 J_b^T - u^T K^-1 u = K_bb + u . w.
 void IslandBlocks::coupleBounded(const Island& isl, const std::vector<ConstraintBlock>& blocks,
-                                 const std::vector<ConstraintRow>& rows,
+                                 std::vector<ConstraintRow>& rows,
                                  const std::vector<SolverBody>& bodies) {
   const std::int32_t n = isl.size;
   const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
@@ -286,7 +286,7 @@ void IslandBlocks::coupleBounded(const Island& isl, const std::vector<Constraint
   };
   for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
     BoundedRow& br = bounded_[k];
-    const ConstraintRow& row = rows[br.row];
+    ConstraintRow& row = rows[br.row];
     const ConstraintBlock& blk = blocks[br.block];
     double* w = &weights_[br.weights];
     for (std::int32_t i = 0; i < n; ++i)
@@ -308,6 +308,9 @@ void IslandBlocks::coupleBounded(const Island& isl, const std::vector<Constraint
     for (std::int32_t i = 0; i < n; ++i) {
       if (w[i] != 0.0) addRow(delta, rows[rowOf[i]], blocks[blockOf[i]], w[i]);
     }
+    // A mass-relative spring sees the Schur complement as its mass
+    // (Solver::coupleBoundedRows says why).
+    if (row.gammaShare > 0.0) row.gamma = row.gammaRelax = row.gammaShare * (kbb - uKu);
     const double schur = kbb - uKu + row.gamma;
     // A bounded row that the equality rows already fix has no freedom left.
     br.effMass = schur > 1e-12 * std::max(kbb, 1e-300) ? 1.0 / schur : 0.0;

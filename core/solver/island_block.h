@@ -59,7 +59,8 @@ class IslandBlocks {
               const std::vector<std::int32_t>& islandStart, int islandCount, int maxRows);
   // K of each chosen island and its LDL^T, once the rows are prepared
   // (Jacobians times M^-1, gamma).
-  void factorAll(const std::vector<ConstraintBlock>& blocks, const std::vector<ConstraintRow>& rows,
+  // Bounded rows with a mass-relative spring get their gamma here.
+  void factorAll(const std::vector<ConstraintBlock>& blocks, std::vector<ConstraintRow>& rows,
                  const std::vector<SolverBody>& bodies);
 
   // Whether island i's joint equality rows are solved here (the sweep
@@ -134,7 +135,7 @@ class IslandBlocks {
   void solveInPlace(const Island& isl, double* x) const;
   // Each bounded row's w and effective mass, once the factor is made.
   void coupleBounded(const Island& isl, const std::vector<ConstraintBlock>& blocks,
-                     const std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
+                     std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
 
   std::vector<std::int32_t> islandOf_;  // island -> index into islands_, or -1
   std::vector<Island> islands_;

@@ -49,11 +49,13 @@ void solveRow(ConstraintRow& row, bool useBias, SolverBody& a, SolverBody& b) {
   applyImpulse(row, dP, a, b);
 }
 
-// The residual a row reports: |J v + b + gamma P|, or 0 where the
-// accumulated impulse sits on the bound [lo, hi] the row pushes against.
+// The residual a row reports: |J v + b + gamma P + blockSoftness|, or 0
+// where the accumulated impulse sits on the bound [lo, hi] the row pushes
+// against. blockSoftness: the row's part of Gamma P where its block
+// carries the softness (ConstraintBlock::springShare).
 double reportedResidual(const ConstraintRow& row, double lo, double hi, const SolverBody& a,
-                        const SolverBody& b) {
-  const double r = rowResidual(row, true, a, b);
+                        const SolverBody& b, double blockSoftness) {
+  const double r = rowResidual(row, true, a, b) + blockSoftness;
   if (row.impulse <= lo && r > 0.0) return 0.0;
   if (row.impulse >= hi && r < 0.0) return 0.0;
   return std::abs(r);
@@ -376,8 +378,11 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
       }
     }
   }
-  for (std::size_t bi = 0; bi < blockCount; ++bi)
-    finishBlock(s, h, blocks_[bi]);
+  for (int island = 0; island < islandCount_; ++island) {
+    const bool inIslandBlock = useIslandBlock_ && islandBlocks_.covers(island);
+    for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi)
+      finishBlock(s, h, blocks_[bi], inIslandBlock);
+  }
   if (useIslandBlock_) islandBlocks_.factorAll(blocks_, rows_, bodies_);
 }
 
@@ -545,16 +550,52 @@ double Solver::startVelocity(const ConstraintRow& row, const ConstraintBlock& bl
          row.angB.dot(w(blk.bodyB));
 }
 
+// A spring given relative to a row's effective mass (Spring, StepSpring:
+// k = m w^2 with m = 1 / K_ii, softness.h) is not one spring on a block
+// of rows: K_ii depends on the axes the rows happen to use. A 1 m ball
+// joint holding a 5 cm bob has K = 1 kg^-1 along the rod and 1001 across
+// it (the bob turns). Rows along the world axes at 45 degrees each see
+// K_ii = 501, and gamma_i = c K_ii made the rod 500 times softer than the
+// spring asked for: the joint opened 90 mm, and relax, which keeps gamma
+// P, left that creep in every sub-step (the bob kept 9% of its energy
+// over 10 s). Gamma = c K, the same spring on every direction of the
+// block whatever its axes (Box2D v3's soft joints do the same with their
+// mass and impulse scales), needs no K times P in the sweeps: with the
+// factor of (1 + c) K, (K + Gamma) dP = -(J v + b + Gamma P) is
+//   dP = -((1 + c) K)^-1 (J v + b) - c / (1 + c) P.
+// This returns c when every equality row of a joint block has the same
+// mass-relative spring, else 0 (the rows keep their own gamma). An
+// island block keeps its own (its rows are rigid there, prepare says why).
+double Solver::blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
+                                bool inIslandBlock) const {
+  if (blk.unilateral || blk.equality < 2 || inIslandBlock || s.blockMode != BlockMode::Block)
+    return 0.0;
+  const ConstraintRow* eq = &rows_[blk.firstRow];
+  double share = 0.0;
+  for (int i = 0; i < blk.equality; ++i) {
+    if (eq[i].biasKind != RowBias::Baumgarte || !eq[i].softness) return 0.0;
+    const Softness soft = softnessOf(*eq[i].softness, h);
+    if (soft.mode != Softness::Mode::Spring && soft.mode != Softness::Mode::StepSpring) return 0.0;
+    const double c = soft.gamma(h, 1.0);
+    if (i > 0 && c != share) return 0.0;
+    share = c;
+  }
+  return share;
+}
+
 // Bias, CFM and effective masses of a block's rows, then K of its
 // equality (or contact normal) rows and its LDL^T.
-void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk) {
+void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk,
+                         bool inIslandBlock) {
   const SolverBody& a = bodies_[blk.bodyA];
   const SolverBody& b = bodies_[blk.bodyB];
   ConstraintRow* rows = &rows_[blk.firstRow];
+  blk.springShare = blockSpringShare(s, h, blk, inIslandBlock);
   for (int i = 0; i < blk.rowCount(); ++i) {
     ConstraintRow& row = rows[i];
     row.invIangA = a.invI * row.angA;
     row.invIangB = b.invI * row.angB;
+    row.gammaShare = 0.0;
     const double kDiag = rowDiagonal(row, a, b);
     switch (row.biasKind) {
       case RowBias::Velocity:  // motors, friction: lo/hi and gamma came per unit force
@@ -581,7 +622,9 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
           const double C = std::min(0.0, row.C + row.slop);
           row.bias = std::max(penetrationRate(row, blk, h) * C, -row.maxBias);
           row.biasRelax = 0.0;
-          row.gamma = softnessOf(*row.softness, h).gamma(h, kDiag);
+          const Softness soft = softnessOf(*row.softness, h);
+          row.gamma = soft.gamma(h, kDiag);
+          row.gammaShare = soft.massRelative() ? soft.gamma(h, 1.0) : 0.0;
         }
         // A moving surface (ODE motionN) asks for that separating speed.
         row.bias -= row.target;
@@ -592,11 +635,14 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
         const Softness soft = softnessOf(*row.softness, h);
         row.bias = soft.biasRate(h) * row.C;
         row.biasRelax = 0.0;
-        row.gamma = soft.gamma(h, kDiag);
+        // In a block with a spring share the block carries the softness.
+        row.gamma = i < blk.equality && blk.springShare > 0.0 ? 0.0 : soft.gamma(h, kDiag);
+        row.gammaShare = soft.massRelative() ? soft.gamma(h, 1.0) : 0.0;
         break;
       }
     }
-    const double k = kDiag + row.gamma;
+    const double k =
+        i < blk.equality ? kDiag * (1.0 + blk.springShare) + row.gamma : kDiag + row.gamma;
     row.effMass = k > 0.0 ? 1.0 / k : 0.0;
     if (row.frictionOf == ConstraintRow::kNoFriction) {
       row.impulse = std::clamp(row.impulse, row.lo, row.hi);
@@ -630,6 +676,7 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
     }
     blk.ldl(r, r) += eq[r].gamma;
   }
+  if (blk.springShare > 0.0) blk.ldl *= 1.0 + blk.springShare;  // K + c K (gamma is 0)
   ldltFactor(blk.ldl, ne);
   if (s.blockMode == BlockMode::Block && !blk.unilateral) coupleBoundedRows(blk);
 }
@@ -650,7 +697,7 @@ void Solver::coupleBoundedRows(const ConstraintBlock& blk) {
   const ConstraintRow* eq = &rows_[blk.firstRow];
   const int ne = blk.equality;
   for (int r = blk.boundedBegin(); r < blk.boundedEnd(); ++r) {
-    const ConstraintRow& row = rows_[r];
+    ConstraintRow& row = rows_[r];
     BoundedCoupling& c = coupling_[r];
     double w[6];
     for (int i = 0; i < ne; ++i) {
@@ -670,8 +717,14 @@ void Solver::coupleBoundedRows(const ConstraintBlock& blk) {
     }
     c.dvA = a.invMass * linA;
     c.dvB = b.invMass * linB;
-    const double k = row.linA.dot(c.dvA) + row.angA.dot(c.dwA) + row.linB.dot(c.dvB) +
-                     row.angB.dot(c.dwB) + row.gamma;
+    const double schur =
+        row.linA.dot(c.dvA) + row.angA.dot(c.dwA) + row.linB.dot(c.dvB) + row.angB.dot(c.dwB);
+    // A spring relative to the row's effective mass is relative to the
+    // one it has here: a hinge stop at a 0.7 m lever sees the pendulum's
+    // inertia about the pivot, 75 times its own about its centre, and a
+    // gamma from K_ii made the stop that much softer than it asks.
+    if (row.gammaShare > 0.0) row.gamma = row.gammaRelax = row.gammaShare * schur;
+    const double k = schur + row.gamma;
     // A bounded row that the equality rows already fix has no freedom left.
     c.effMass = k > 1e-12 / std::max(row.effMass, 1e-300) ? 1.0 / k : 0.0;
   }
@@ -708,7 +761,6 @@ void Solver::warmStart() {
 void Solver::sweep(int island, bool useBias, BlockMode mode) {
   const bool islandBlock = useIslandBlock_ && islandBlocks_.covers(island);
   const bool islandBounded = islandBlock && islandBlocks_.solvesBounded(island);
-  if (islandBounded) islandBlocks_.solveBounded(island, useBias, blocks_, rows_, bodies_);
   for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
     ConstraintBlock& blk = blocks_[bi];
     SolverBody& a = bodies_[blk.bodyA];
@@ -724,16 +776,18 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
         solveRow(rows[i], useBias, a, b);
       continue;
     }
-    // Limits and motors first, the rigid block last (row.h says why).
+    // The rigid block first, then limits and motors in its null space
+    // (row.h says why).
+    if (!islandBlock) solveEqualityBlock(blk, useBias, a, b);
     if (!islandBounded) {
       for (int i = blk.boundedBegin(); i < blk.boundedEnd(); ++i)
         solveCoupledRow(i, useBias, rows, ne, a, b);
     }
-    if (!islandBlock) solveEqualityBlock(blk, useBias, a, b);
   }
-  // The island's limits and motors, then its equality rows all at once,
-  // last (the most important).
+  // The island's equality rows all at once, then its limits and motors in
+  // their null space (row.h says why).
   if (islandBlock) islandBlocks_.solve(island, useBias, blocks_, rows_, bodies_);
+  if (islandBounded) islandBlocks_.solveBounded(island, useBias, blocks_, rows_, bodies_);
 }
 
 // Section 4.3: (J M^-1 J^T + c/h) dP = -(J v + b + gamma P) for the whole
@@ -745,6 +799,11 @@ void Solver::solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& 
   for (int i = 0; i < ne; ++i)
     dP[i] = relaxSkips(eq[i], useBias) ? 0.0 : -rowResidual(eq[i], useBias, a, b);
   ldltSolve(blk.ldl, ne, dP);
+  if (blk.springShare > 0.0) {  // Gamma = c K (blockSpringShare)
+    const double impulseShare = blk.springShare / (1.0 + blk.springShare);
+    for (int i = 0; i < ne; ++i)
+      dP[i] -= impulseShare * eq[i].impulse;
+  }
   if (blk.unilateral) {
     // Accept the block solution only if every accumulated normal impulse
     // stays >= 0 (all points pushing: the resting case).
@@ -853,6 +912,18 @@ void Solver::islandResidual(int island, double& max, double& sumSq, int& count) 
       for (int i = 0; i < blk.equality; ++i)
         normalSum += rows[i].impulse;
     }
+    // Gamma P = c K P = c J M^-1 J^T P: the velocity the equality
+    // impulses give the bodies, seen by each row.
+    Vec3 softA[2] = {Vec3::Zero(), Vec3::Zero()}, softB[2] = {Vec3::Zero(), Vec3::Zero()};
+    if (blk.springShare > 0.0) {
+      for (int i = 0; i < blk.equality; ++i) {
+        const double cP = blk.springShare * rows[i].impulse;
+        softA[0] += (a.invMass * cP) * rows[i].linA;
+        softA[1] += cP * rows[i].invIangA;
+        softB[0] += (b.invMass * cP) * rows[i].linB;
+        softB[1] += cP * rows[i].invIangB;
+      }
+    }
     for (int i = 0; i < blk.rowCount(); ++i) {
       const ConstraintRow& row = rows[i];
       if (row.effMass == 0.0) continue;  // acts on nothing that moves
@@ -866,7 +937,11 @@ void Solver::islandResidual(int island, double& max, double& sumSq, int& count) 
                                                                     : rows[row.frictionOf].impulse);
         lo = -hi;
       }
-      const double r = reportedResidual(row, lo, hi, a, b);
+      const double blockSoftness = i < blk.equality && blk.springShare > 0.0
+                                       ? row.linA.dot(softA[0]) + row.angA.dot(softA[1]) +
+                                             row.linB.dot(softB[0]) + row.angB.dot(softB[1])
+                                       : 0.0;
+      const double r = reportedResidual(row, lo, hi, a, b, blockSoftness);
       max = std::max(max, r);
       sumSq += r * r;
       ++count;

@@ -78,7 +78,9 @@ class Solver {
   void buildContactBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t c,
                          ConstraintBlock& blk);
   double penetrationRate(const ConstraintRow& row, const ConstraintBlock& blk, double h) const;
-  void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk);
+  double blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
+                          bool inIslandBlock) const;
+  void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk, bool inIslandBlock);
   // J v with the velocities the (sub-)step started from.
   double startVelocity(const ConstraintRow& row, const ConstraintBlock& blk) const;
   void solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b);

@@ -516,19 +516,33 @@ TEST(Solver, SubsteppedPendulumKeepsItsEnergyAndTheClosedFormPeriod) {
   const double pivotInertia = 0.4 * mass * radius * radius + mass * length * length;
   const double K = 1.8540746773013719;  // K(sin 45 deg), the complete elliptic integral
   const double closedForm = 4.0 * std::sqrt(pivotInertia / (mass * g * length)) * K;
-  // Without relax sweeps: the sub-stepped preset's relax drains this
-  // pendulum (its joint opens 69 mm and it keeps 9% of its energy: a
-  // known defect, see the README's relax paragraph).
-  SolverSettings s = SolverSettings::subStepped(10);
-  s.relaxIterations = 0;
-  const PendulumRun run = swingPendulum(s);
-  std::printf(
-      "1 m pendulum from horizontal, 10 s, 10 sub-steps without relax: energy kept %.4f, period "
-      "%.4f s (closed form %.4f s), joint gap %.3g mm\n",
-      run.energyKept, run.period, closedForm, 1e3 * run.worstGap);
-  EXPECT_GT(run.energyKept, 0.98);
-  EXPECT_NEAR(run.period, closedForm, 0.003 * closedForm);
-  EXPECT_LT(run.worstGap, 0.01);
+  struct Case {
+    const char* name;
+    int relaxIterations;
+    bool relaxCancelsDrift;
+  };
+  for (const Case c : {Case{"no relax", 0, false}, Case{"relax (the preset)", 1, false},
+                       Case{"relax cancelling drift", 1, true}}) {
+    SolverSettings s = SolverSettings::subStepped(10);
+    s.relaxIterations = c.relaxIterations;
+    s.relaxCancelsDrift = c.relaxCancelsDrift;
+    const PendulumRun run = swingPendulum(s);
+    std::printf(
+        "1 m pendulum from horizontal, 10 s, 10 sub-steps, %s: energy kept %.4f, period %.4f s "
+        "(closed form %.4f s), joint gap %.3g mm\n",
+        c.name, run.energyKept, run.period, closedForm, 1e3 * run.worstGap);
+    SCOPED_TRACE(c.name);
+    // The ball joint's spring acts on its block as a whole: with one
+    // gamma per world axis (from each row's K_ii) the rod was 500 times
+    // softer across the axes, and under relax it opened 69 mm and kept 9%.
+    EXPECT_LT(run.worstGap, 1e-3);
+    // Relax that targets J v = 0 drains about (w h)^2 a sub-step (see
+    // Solver::relaxAgainstDrift), and the swing's period shortens as it
+    // decays; the other two keep the energy and the closed-form period.
+    const bool drains = c.relaxIterations > 0 && !c.relaxCancelsDrift;
+    EXPECT_GT(run.energyKept, drains ? 0.85 : c.relaxIterations > 0 ? 0.97 : 0.99);
+    EXPECT_NEAR(run.period, closedForm, (drains ? 0.02 : 0.003) * closedForm);
+  }
 }
 
 // The chain that flew apart at 3e8 m/s under the plugin: 40 light spheres

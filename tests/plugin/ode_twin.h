@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <ode/ode.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -123,6 +124,42 @@ inline TwinRun runTwin(const std::function<void(OdeScene&)>& build,
     }
   }
   return run;
+}
+
+// A rigid pendulum's swing from hanging, theta'' = -k sin theta (k = m g
+// r / I about the pivot), from theta0 at rate0, sampled every h for
+// `seconds`: RK4 at h / 1000, with inelastic stops at [lo, hi] (each
+// takes the whole speed into it, ODE's bounce 0). The reference the
+// hinge tests hold blockstep and ODE's own steppers to.
+inline std::vector<double> pendulumSwing(double k, double theta0, double rate0, double lo,
+                                         double hi, double h, double seconds) {
+  double theta = theta0, rate = rate0;
+  const int per = 1000;
+  const double dt = h / per;
+  auto accel = [k](double a) { return -k * std::sin(a); };
+  std::vector<double> out;
+  for (int step = 0; step < static_cast<int>(std::lround(seconds / h)); ++step) {
+    for (int i = 0; i < per; ++i) {
+      const double k1a = rate, k1r = accel(theta);
+      const double k2a = rate + 0.5 * dt * k1r, k2r = accel(theta + 0.5 * dt * k1a);
+      const double k3a = rate + 0.5 * dt * k2r, k3r = accel(theta + 0.5 * dt * k2a);
+      const double k4a = rate + dt * k3r, k4r = accel(theta + dt * k3a);
+      theta += dt / 6.0 * (k1a + 2.0 * k2a + 2.0 * k3a + k4a);
+      rate += dt / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r);
+      if (theta < lo || theta > hi) {
+        theta = std::clamp(theta, lo, hi);
+        rate = 0.0;
+      }
+    }
+    out.push_back(theta);
+  }
+  return out;
+}
+
+// k = m g r / I about the pivot of a cube-shaped bob (ODE's box, side
+// `side`) at lever r.
+inline double cubePendulumRate(double mass, double side, double lever) {
+  return mass * 9.81 * lever / (mass * side * side / 6.0 + mass * lever * lever);
 }
 
 inline double distance(const dVector3 a, const dVector3 b) {
