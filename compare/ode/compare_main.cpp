@@ -72,7 +72,7 @@ std::vector<std::string> costGrid() {
     for (int sub : {1, 2, 4, 10})
       grid.push_back("quickstep:" + std::to_string(it) +
                      (sub > 1 ? "x" + std::to_string(sub) : ""));
-  for (int n : {2, 5, 10, 20, 40})
+  for (int n : {1, 2, 5, 10, 20, 40})
     grid.push_back("blockstep:substep:" + std::to_string(n));
   return grid;
 }
@@ -452,7 +452,7 @@ int main(int argc, char** argv) {
   bool grid = false;
   app.add_flag("--grid", grid,
                "error versus cost: quickstep 10/20/50 iterations x 1/2/4/10 sub-steps and "
-               "blockstep 2/5/10/20/40 sub-steps, in place of --stepper");
+               "blockstep 1/2/5/10/20/40 sub-steps, in place of --stepper");
   std::vector<std::string> sweeps;
   app.add_option("--sweep", sweeps,
                  "key=v1,v2,...: every stepper once per value, with ,key=value added "
