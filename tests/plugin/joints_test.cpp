@@ -122,7 +122,7 @@ TEST(OdeJoints, HingeStopsUseOdesZeroAngle) {
       continue;
     }
     const double mass = 1.0, side = 0.2, lever = 0.7;
-    const double turnRate = mass * lever * 2.0 / (mass * side * side / 6.0 + mass * lever * lever);
+    const double turnRate = mass * lever * 2.0 / cubePivotInertia(mass, side, lever);
     const std::vector<double> swing = pendulumSwing(cubePendulumRate(mass, side, lever), 0.0,
                                                     turnRate, -hi, -lo, kStep, kSeconds);
     double blockOff = 0.0, odeOff = 0.0;
@@ -282,42 +282,28 @@ TEST(OdeJoints, BallDoublePendulum) {
 // so an inelastic stop sets t2' = 0. Integrated by RK4 at 1/1000 of h;
 // the start velocity (0.8, 0.6, 0) m/s is projected onto the joint's
 // motion as the joint's first impulse does (momentum kept along it).
-std::vector<std::array<double, 2>> universalWithInelasticStop2(double stop, double h,
+std::vector<std::array<double, 4>> universalWithInelasticStop2(double stop, double h,
                                                                double seconds) {
   const double m = 1.0, L = 0.5, I0 = m * 0.2 * 0.2 / 6.0, g = 9.81;
-  std::array<double, 4> y = {0.0, 0.0, m * L * 0.6 / (m * L * L + I0),
-                             -m * L * 0.8 / (m * L * L + I0)};  // t1, t2, t1', t2'
-  auto rates = [&](const std::array<double, 4>& q) {
-    const double c1 = std::cos(q[0]), s1 = std::sin(q[0]), c2 = std::cos(q[1]), s2 = std::sin(q[1]);
-    return std::array<double, 4>{
-        q[2], q[3], (-m * L * L * c1 * s1 * q[3] * q[3] - m * g * L * s1 * c2) / (m * L * L + I0),
-        (2.0 * m * L * L * c1 * s1 * q[2] * q[3] - m * g * L * c1 * s2) /
-            (m * L * L * c1 * c1 + I0)};
-  };
-  auto moved = [](std::array<double, 4> q, const std::array<double, 4>& d, double t) {
-    for (int i = 0; i < 4; ++i)
-      q[i] += t * d[i];
-    return q;
-  };
-  const int per = 1000;
-  const double dt = h / per;
-  std::vector<std::array<double, 2>> out;
-  for (int step = 0; step < static_cast<int>(std::lround(seconds / h)); ++step) {
-    for (int i = 0; i < per; ++i) {
-      const auto k1 = rates(y);
-      const auto k2 = rates(moved(y, k1, 0.5 * dt));
-      const auto k3 = rates(moved(y, k2, 0.5 * dt));
-      const auto k4 = rates(moved(y, k3, dt));
-      for (int j = 0; j < 4; ++j)
-        y[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
-      if (std::abs(y[1]) > stop) {
-        y[1] = std::clamp(y[1], -stop, stop);
-        y[3] = 0.0;
-      }
-    }
-    out.push_back({y[0], y[1]});
-  }
-  return out;
+  const double start = m * L / (m * L * L + I0);  // turn per unit start speed
+  return integrateRk4<4>(
+      {0.0, 0.0, 0.6 * start, -0.8 * start},  // t1, t2, t1', t2'
+      [&](const std::array<double, 4>& q) {
+        const double c1 = std::cos(q[0]), s1 = std::sin(q[0]), c2 = std::cos(q[1]),
+                     s2 = std::sin(q[1]);
+        return std::array<double, 4>{
+            q[2], q[3],
+            (-m * L * L * c1 * s1 * q[3] * q[3] - m * g * L * s1 * c2) / (m * L * L + I0),
+            (2.0 * m * L * L * c1 * s1 * q[2] * q[3] - m * g * L * c1 * s2) /
+                (m * L * L * c1 * c1 + I0)};
+      },
+      [stop](std::array<double, 4>& q) {
+        if (std::abs(q[1]) > stop) {
+          q[1] = std::clamp(q[1], -stop, stop);
+          q[3] = 0.0;
+        }
+      },
+      h, seconds);
 }
 
 // Universal joint: a body hanging below it, spun about both axes, with an

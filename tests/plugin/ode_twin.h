@@ -7,6 +7,7 @@
 #include <ode/ode.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -126,40 +127,66 @@ inline TwinRun runTwin(const std::function<void(OdeScene&)>& build,
   return run;
 }
 
-// A rigid pendulum's swing from hanging, theta'' = -k sin theta (k = m g
-// r / I about the pivot), from theta0 at rate0, sampled every h for
-// `seconds`: RK4 at h / 1000, with inelastic stops at [lo, hi] (each
-// takes the whole speed into it, ODE's bounce 0). The reference the
-// hinge tests hold blockstep and ODE's own steppers to.
-inline std::vector<double> pendulumSwing(double k, double theta0, double rate0, double lo,
-                                         double hi, double h, double seconds) {
-  double theta = theta0, rate = rate0;
+// y integrated over `seconds` by RK4 at h / 1000, sampled every h:
+// y' = rates(y); stop(y) runs after each RK4 step (an inelastic stop sets
+// a coordinate's rate to 0). The equations-of-motion references the
+// joint tests hold blockstep and ODE's own steppers to.
+template <std::size_t N, class Rates, class Stop>
+std::vector<std::array<double, N>> integrateRk4(std::array<double, N> y, Rates rates, Stop stop,
+                                                double h, double seconds) {
+  auto moved = [](std::array<double, N> q, const std::array<double, N>& d, double t) {
+    for (std::size_t i = 0; i < N; ++i)
+      q[i] += t * d[i];
+    return q;
+  };
   const int per = 1000;
   const double dt = h / per;
-  auto accel = [k](double a) { return -k * std::sin(a); };
-  std::vector<double> out;
+  std::vector<std::array<double, N>> out;
   for (int step = 0; step < static_cast<int>(std::lround(seconds / h)); ++step) {
     for (int i = 0; i < per; ++i) {
-      const double k1a = rate, k1r = accel(theta);
-      const double k2a = rate + 0.5 * dt * k1r, k2r = accel(theta + 0.5 * dt * k1a);
-      const double k3a = rate + 0.5 * dt * k2r, k3r = accel(theta + 0.5 * dt * k2a);
-      const double k4a = rate + dt * k3r, k4r = accel(theta + dt * k3a);
-      theta += dt / 6.0 * (k1a + 2.0 * k2a + 2.0 * k3a + k4a);
-      rate += dt / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r);
-      if (theta < lo || theta > hi) {
-        theta = std::clamp(theta, lo, hi);
-        rate = 0.0;
-      }
+      const auto k1 = rates(y);
+      const auto k2 = rates(moved(y, k1, 0.5 * dt));
+      const auto k3 = rates(moved(y, k2, 0.5 * dt));
+      const auto k4 = rates(moved(y, k3, dt));
+      for (std::size_t j = 0; j < N; ++j)
+        y[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+      stop(y);
     }
-    out.push_back(theta);
+    out.push_back(y);
   }
   return out;
 }
 
-// k = m g r / I about the pivot of a cube-shaped bob (ODE's box, side
-// `side`) at lever r.
+// A rigid pendulum's swing from hanging, theta'' = -k sin theta (k = m g
+// r / I about the pivot), from theta0 at rate0, sampled every h, with
+// inelastic stops at [lo, hi] (each takes the whole speed into it, ODE's
+// bounce 0).
+inline std::vector<double> pendulumSwing(double k, double theta0, double rate0, double lo,
+                                         double hi, double h, double seconds) {
+  const auto states = integrateRk4<2>(
+      {theta0, rate0},
+      [k](const std::array<double, 2>& y) {
+        return std::array<double, 2>{y[1], -k * std::sin(y[0])};
+      },
+      [lo, hi](std::array<double, 2>& y) {
+        if (y[0] < lo || y[0] > hi) y = {std::clamp(y[0], lo, hi), 0.0};
+      },
+      h, seconds);
+  std::vector<double> swing;
+  for (const auto& y : states)
+    swing.push_back(y[0]);
+  return swing;
+}
+
+// The inertia about a pivot at lever r of a cube-shaped bob (ODE's box,
+// side `side`).
+inline double cubePivotInertia(double mass, double side, double lever) {
+  return mass * side * side / 6.0 + mass * lever * lever;
+}
+
+// k = m g r / I of that pendulum.
 inline double cubePendulumRate(double mass, double side, double lever) {
-  return mass * 9.81 * lever / (mass * side * side / 6.0 + mass * lever * lever);
+  return mass * 9.81 * lever / cubePivotInertia(mass, side, lever);
 }
 
 inline double distance(const dVector3 a, const dVector3 b) {
