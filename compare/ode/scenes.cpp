@@ -16,9 +16,10 @@ namespace {
 
 constexpr double kLinkLength = 0.1;  // chain links
 
-// 50 capsule links (r 0.01 m, 0.1 m long, 0.1 kg; the last 10 kg) on ball
-// joints from a world pin at z = 6: hanging, or released horizontally.
-void buildChain(Scene& s, bool horizontal) {
+// 50 capsule links (r 0.01 m, 0.1 m long, 0.1 kg; the last 10 kg, or
+// endMass) on ball joints from a world pin at z = 6: hanging, or released
+// horizontally.
+void buildChain(Scene& s, bool horizontal, double endMass = 10.0) {
   constexpr int kLinks = 50;
   constexpr double kPinZ = 6.0;
   dBodyID previous = nullptr;
@@ -26,7 +27,7 @@ void buildChain(Scene& s, bool horizontal) {
   for (int i = 0; i < kLinks; ++i) {
     s.drawHints().strands.back().push_back(i);
     dMass m;
-    const double mass = i == kLinks - 1 ? 10.0 : 0.1;
+    const double mass = i == kLinks - 1 ? endMass : 0.1;
     dMassSetCapsuleTotal(&m, mass, horizontal ? 1 : 3, 0.01, kLinkLength - 0.02);
     const double along = (i + 0.5) * kLinkLength;
     dBodyID b =
@@ -462,6 +463,23 @@ void buildHair(Scene& s) {
   }
 }
 
+// A mass ratio carried through contacts: a 1 kg plank (2 m x 0.3 m x
+// 0.05 m) laid across two fixed supports 1.6 m apart, and a 1000 kg block
+// (0.4 m) set on its middle, everything exactly touching. Nothing should
+// move: the plank's contacts carry 1001 kg, the block's 1000 kg.
+void buildPlankLoad(Scene& s) {
+  groundPlane(s);
+  constexpr double kSupportH = 0.5, kPlankH = 0.05, kBlock = 0.4;
+  for (double x : {-0.8, 0.8}) {
+    dGeomID support = dCreateBox(s.space(), 0.2, 0.4, kSupportH);
+    dGeomSetPosition(support, x, 0.0, 0.5 * kSupportH);
+  }
+  box(s, 1.0, 2.0, 0.3, kPlankH, 0.0, 0.0, kSupportH + 0.5 * kPlankH);
+  dBodyID block =
+      box(s, 1000.0, kBlock, kBlock, kBlock, 0.0, 0.0, kSupportH + kPlankH + 0.5 * kBlock);
+  s.setProbe(block);
+}
+
 // demo_I's construction: a light anchor (a 0.1 m box of 0.1 kg) carrying
 // ten heavier particles (0.1-1.1 kg, within 0.5 m) on ball joints, its
 // centre of mass at the anchor, spinning free of gravity: per-joint
@@ -521,6 +539,15 @@ const std::map<std::string, SceneKind>& builders() {
         "50 capsule links of 0.1 kg on ball joints, the last 10 kg, hanging from a pin"}},
       {"chain_swing",
        {[](Scene& s, int) { buildChain(s, true); }, "the same chain released horizontally"}},
+      {"chain_heavy",
+       {[](Scene& s, int) { buildChain(s, false, 100.0); },
+        "the hanging chain with a 100 kg end: links 1000 times lighter than their load"}},
+      {"chain_heavy_swing",
+       {[](Scene& s, int) { buildChain(s, true, 100.0); },
+        "chain_swing with a 100 kg end: links 1000 times lighter than the load they whip"}},
+      {"plank_load",
+       {[](Scene& s, int) { buildPlankLoad(s); },
+        "a 1000 kg block on a 1 kg plank across two supports (1000:1 through contacts)"}},
       {"stack", {[](Scene& s, int) { buildStack(s); }, "10 boxes of 0.5 m, 1 kg, on the plane"}},
       {"pyramid",
        {[](Scene& s, int) { buildPyramid(s); },

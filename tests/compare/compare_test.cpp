@@ -33,6 +33,8 @@ TEST(CompareScenes, BuiltAsScenesMdSays) {
   const auto star = makeScene("star");
   EXPECT_EQ(star->bodies().size(), 11u);
   EXPECT_EQ(star->joints().size(), 10u);
+  EXPECT_EQ(makeScene("chain_heavy")->joints().size(), 50u);
+  EXPECT_EQ(makeScene("plank_load")->bodies().size(), 2u);
   const auto ragdoll = makeScene("ragdoll");
   EXPECT_EQ(ragdoll->bodies().size(), 5u);
   EXPECT_EQ(ragdoll->joints().size(), 4u);
@@ -253,6 +255,27 @@ TEST(CompareRuns, HangingChainAsScenesMdMeasures) {
   EXPECT_LT(direct.maxSeparation, 1e-6);
   EXPECT_LT(block.maxSeparation, 1e-4);
   EXPECT_EQ(block.frames.size(), 120u);
+  EXPECT_FALSE(block.exploded);
+}
+
+// The mass-ratio target's chain: the hanging chain with its end 1000 times
+// its links' mass. Its joint rows are one island block, exact whatever the
+// ratio, so even one sub-step a frame holds it; quickstep 20 stretches it
+// by metres (1.99 m over 1000 frames).
+TEST(CompareRuns, ThousandToOneHangingChainHoldsAtOneSubstep) {
+  RunOptions o;
+  o.frames = 120;
+  auto measure = [&](const char* stepper) {
+    auto s = makeScene("chain_heavy");
+    return run(*s, parseStepper(stepper), o);
+  };
+  const RunResult quick = measure("quickstep:20");
+  const RunResult block = measure("blockstep:substep:1");
+  std::printf("  chain_heavy, 120 frames: max separation quickstep 20 %.3g m, blockstep %.3g m\n",
+              quick.maxSeparation, block.maxSeparation);
+  EXPECT_GT(quick.maxSeparation, 0.5);
+  EXPECT_LT(block.maxSeparation, 1e-6);
+  EXPECT_EQ(block.odeSteppedFrames, 0);
   EXPECT_FALSE(block.exploded);
 }
 
