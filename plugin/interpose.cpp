@@ -111,10 +111,14 @@ int dWorldStep(dWorldID w, dReal stepsize) {
 
 // ---------------------------------------------------------------- worlds
 
+// The registry forgets the world first: ODE's dWorldDestroy calls
+// dBodyDestroy (ours) for each body, and each of those, still registered,
+// had its joints looked up among all of the world's (a 128 x 128 cloth's
+// world took 2.4 s to destroy, against 20 ms for its steps' frame).
 void dWorldDestroy(dWorldID w) {
   BLOCKSTEP_REAL(dWorldDestroy);
-  real_dWorldDestroy(w);  // calls dBodyDestroy (ours) for each body
   guarded(__func__, [&] { Registry::instance().worldDestroyed(w); });
+  real_dWorldDestroy(w);
   forgetWorld(w);
 }
 

@@ -118,12 +118,12 @@ void WorldBridge::forgetBody(dBodyID body) {
   // The core destroys the body's joints with it; their ODE joints are
   // detached (ODE keeps them) and get new core joints when reattached.
   const BodyId id = m->id;
-  joints_.forEach([&](dJointID, MappedJoint& j) {
-    if (j.id < 0) return;
-    const JointCommon& c = common(core_.joint(j.id));
-    if (c.bodyA == id || c.bodyB == id) j.id = -1;
-  });
-  if (id >= 0) core_.destroyBody(id);
+  if (id >= 0) {
+    for (JointId joint : core_.jointsOf(id)) {
+      if (MappedJoint* j = joints_.find(odeJointOf_[joint])) j->id = -1;
+    }
+    core_.destroyBody(id);
+  }
   bodies_.erase(body);
 }
 
@@ -502,6 +502,8 @@ void WorldBridge::makeJoint(MappedJoint& m, dJointID j, JointRead& read) {
     m.offset[k] = read.coordinate[k];
   shiftLimits(read.desc, m.offset);
   m.id = core_.createJoint(read.desc);
+  if (odeJointOf_.size() <= static_cast<std::size_t>(m.id)) odeJointOf_.resize(m.id + 1);
+  odeJointOf_[m.id] = j;
 }
 
 void WorldBridge::syncJoints(const WorldRecord& record) {

@@ -146,6 +146,9 @@ class WorldBridge {
     int heldSteps = 0;  // ODE steps its island for this many more steps (runaway)
     BodySleep sleep;
   };
+  // The ODE joint of each core joint id (set when made; forgetBody reads
+  // it for the core's joints of a body).
+  std::vector<dJointID> odeJointOf_;
   struct MappedJoint {
     JointId id = -1;
     int type = -1;

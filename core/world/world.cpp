@@ -157,10 +157,9 @@ void World::destroyBody(BodyId id) {
   // Its contacts must not warm start a body that reuses the id.
   std::erase_if(previousContacts_,
                 [id](const ContactManifold& m) { return m.bodyA == id || m.bodyB == id; });
-  for (JointId j = 0; j < static_cast<JointId>(joints_.size()); ++j) {
-    if (!joints_[j].alive) continue;
-    const JointCommon& c = common(joints_[j].desc);
-    if (c.bodyA == id || c.bodyB == id) destroyJoint(j);
+  if (static_cast<std::size_t>(id) < jointsOfBody_.size()) {
+    while (!jointsOfBody_[id].empty())
+      destroyJoint(jointsOfBody_[id].back());
   }
   bodies_[id].alive = false;
   freeBodies_.push_back(id);
@@ -286,7 +285,13 @@ JointId World::createJoint(const JointDesc& desc) {
   }
   joint.desc = d;
   ++liveJoints_;
-  return storeInSlot(joints_, freeJoints_, joint);
+  const JointId id = storeInSlot(joints_, freeJoints_, joint);
+  for (BodyId body : {c.bodyA, c.bodyB == c.bodyA ? kWorldBody : c.bodyB}) {
+    if (body == kWorldBody) continue;
+    if (jointsOfBody_.size() <= static_cast<std::size_t>(body)) jointsOfBody_.resize(body + 1);
+    jointsOfBody_[body].push_back(id);
+  }
+  return id;
 }
 
 Joint& World::mutableJoint(JointId id) {
@@ -302,6 +307,16 @@ const Joint& World::liveJoint(JointId id) const {
 
 void World::destroyJoint(JointId id) {
   Joint& j = mutableJoint(id);
+  const JointCommon& c = common(j.desc);
+  for (BodyId body : {c.bodyA, c.bodyB}) {
+    if (body == kWorldBody || static_cast<std::size_t>(body) >= jointsOfBody_.size()) continue;
+    std::vector<JointId>& list = jointsOfBody_[body];
+    const auto at = std::find(list.begin(), list.end(), id);
+    if (at != list.end()) {
+      *at = list.back();
+      list.pop_back();
+    }
+  }
   j.alive = false;
   j.block = -1;
   freeJoints_.push_back(id);

@@ -79,6 +79,12 @@ class World {
   // What the joint carries between steps and measured last (a gear's
   // wheel angles and contact points); zeros for kinds without such state.
   const JointState& jointState(JointId id) const;
+  // The live joints attached to a body (in no particular order).
+  const std::vector<JointId>& jointsOf(BodyId id) const {
+    static const std::vector<JointId> none;
+    return static_cast<std::size_t>(id) < jointsOfBody_.size() && id >= 0 ? jointsOfBody_[id]
+                                                                          : none;
+  }
 
   // Shapes and contacts. Shapes on kWorldBody are static world geometry
   // (their local pose is their world pose). Contacts found by collision,
@@ -155,6 +161,10 @@ class World {
 
   std::vector<Body> bodies_;
   std::vector<Joint> joints_;
+  // Per body id, its live joints: destroying a body destroys them without
+  // looking through every joint (a world's bodies destroyed one by one
+  // took time quadratic in its size).
+  std::vector<std::vector<JointId>> jointsOfBody_;
   std::vector<BodyId> freeBodies_;
   std::vector<JointId> freeJoints_;
   std::vector<Saved> saved_;

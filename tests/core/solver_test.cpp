@@ -299,8 +299,58 @@ TEST(Validation, DestroyingABodyRemovesItsJoints) {
   world.destroyBody(a);
   EXPECT_THROW(world.joint(j), Error);
   EXPECT_EQ(world.jointCount(), 0);
+  EXPECT_TRUE(world.jointsOf(b).empty());
   world.step(1.0 / 60.0);
   EXPECT_TRUE(world.body(b).position.allFinite());
+}
+
+// A chain of five bodies on the world: each body knows its joints, through
+// destroyed joints, destroyed bodies and reused slots, and destroying a
+// body takes exactly its own.
+TEST(Validation, EachBodyKnowsItsJointsThroughDestructionAndReuse) {
+  World world;
+  std::vector<BodyId> body;
+  std::vector<JointId> joint;
+  for (int i = 0; i < 5; ++i) {
+    body.push_back(world.createBody(boxBody(Vec3(0, 0, -0.2 * i), 1.0, Vec3(0.1, 0.1, 0.1))));
+    BallJointDesc ball;
+    ball.common.bodyA = body[i];
+    ball.common.bodyB = i == 0 ? kWorldBody : body[i - 1];
+    joint.push_back(world.createJoint(ball));
+  }
+  auto sorted = [&](BodyId b) {
+    std::vector<JointId> j = world.jointsOf(b);
+    std::sort(j.begin(), j.end());
+    return j;
+  };
+  EXPECT_EQ(sorted(body[0]), (std::vector<JointId>{joint[0], joint[1]}));
+  EXPECT_EQ(sorted(body[4]), (std::vector<JointId>{joint[4]}));
+  world.destroyJoint(joint[1]);
+  EXPECT_EQ(sorted(body[0]), (std::vector<JointId>{joint[0]}));
+  EXPECT_EQ(sorted(body[1]), (std::vector<JointId>{joint[2]}));
+  world.destroyBody(body[2]);  // takes joints 2 and 3, not 4
+  EXPECT_EQ(world.jointCount(), 2);
+  EXPECT_THROW(world.joint(joint[2]), Error);
+  EXPECT_THROW(world.joint(joint[3]), Error);
+  EXPECT_NO_THROW(world.joint(joint[4]));
+  EXPECT_TRUE(world.jointsOf(body[1]).empty());
+  EXPECT_EQ(sorted(body[3]), (std::vector<JointId>{joint[4]}));
+  // The freed body and joint slots are reused; the new body starts with
+  // no joints and gets only its own.
+  const BodyId again = world.createBody(boxBody(Vec3(1, 0, 0), 1.0, Vec3(0.1, 0.1, 0.1)));
+  EXPECT_EQ(again, body[2]);
+  EXPECT_TRUE(world.jointsOf(again).empty());
+  BallJointDesc ball;
+  ball.common.bodyA = again;
+  ball.common.bodyB = body[4];
+  const JointId fresh = world.createJoint(ball);
+  EXPECT_EQ(sorted(again), (std::vector<JointId>{fresh}));
+  EXPECT_EQ(sorted(body[4]),
+            (std::vector<JointId>{std::min(joint[4], fresh), std::max(joint[4], fresh)}));
+  world.destroyBody(body[4]);
+  EXPECT_EQ(world.jointCount(), 1);  // joint 0 on the world
+  EXPECT_TRUE(world.jointsOf(again).empty());
+  EXPECT_TRUE(world.jointsOf(body[3]).empty());
 }
 
 }  // namespace
