@@ -204,6 +204,14 @@ void readEnvironment() {
     else
       say("ignoring BLOCKSTEP_RELAX_DRIFT=%s: expected 0 or 1", v);
   }
+  if (const char* v = std::getenv("BLOCKSTEP_THREADS");
+      v && parseInt("BLOCKSTEP_THREADS", v, 0, n)) {
+    if (n <= SolverSettings::kMaxThreads)
+      s.threads = n;
+    else
+      say("ignoring BLOCKSTEP_THREADS=%s: expected 0 (one per core) to %d", v,
+          SolverSettings::kMaxThreads);
+  }
   if (const char* v = std::getenv("BLOCKSTEP_RUNAWAY_GAIN");
       v && parseReal("BLOCKSTEP_RUNAWAY_GAIN", v, x)) {
     s.runawayEnergyGain = x;
@@ -537,6 +545,22 @@ void dWorldSetBlockRelaxDrift(dWorldID w, int on) {
   }
   guarded(__func__, [&] { LockedWorld(w).settings().relaxCancelsDrift = on == 1; });
 }
+void dWorldSetBlockThreads(dWorldID w, int threads) {
+  if (threads < 0 || threads > SolverSettings::kMaxThreads) {
+    say("dWorldSetBlockThreads(%d): expected 0 (one per core) to %d; call ignored", threads,
+        SolverSettings::kMaxThreads);
+    return;
+  }
+  guarded(__func__, [&] { LockedWorld(w).settings().threads = threads; });
+}
+
+int dWorldGetBlockThreads(dWorldID w) {
+  return guarded(__func__, 1, [&] {
+    const std::optional<int> threads = LockedWorld(w).settings().threads;
+    return threads ? *threads : currentSettings(w).threads;
+  });
+}
+
 int dWorldGetBlockRelaxDrift(dWorldID w) {
   return guarded(__func__, 0, [&] {
     const std::optional<bool> on = LockedWorld(w).settings().relaxCancelsDrift;

@@ -10,7 +10,7 @@ packages=(
   build-essential cmake pkg-config clang-format dpkg-dev
   libeigen3-dev libccd-dev libode-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libcli11-dev nlohmann-json3-dev python3-matplotlib
+  libcli11-dev nlohmann-json3-dev python3-matplotlib libtbb-dev
   libjs-three chromium
 )
 

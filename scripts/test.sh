@@ -34,6 +34,10 @@ if [ "$sanitize" != "ON" ]; then
     -DBLOCKSTEP_BUILD_BENCHMARKS=OFF > /dev/null
   cmake --build build-tsan --parallel "$(nproc)" --target plugin_tests adapter_tests
   export TSAN_OPTIONS="halt_on_error=1 exitcode=66"
-  build-tsan/tests/plugin_tests --gtest_filter='PluginThreads.*'
+  # Not the islands swept on TBB's threads: Debian's libtbb is not built
+  # with ThreadSanitizer, so its hand-offs to its workers are invisible and
+  # every datum a worker reads looks raced (their test compares every
+  # thread count's bits with one thread's instead).
+  build-tsan/tests/plugin_tests --gtest_filter='PluginThreads.*:-PluginThreads.IslandsSwept*'
   build-tsan/tests/adapter_tests --gtest_filter='RegistryThreads.*'
 fi

@@ -61,6 +61,9 @@ struct BridgeSettings {
   // Relax closes the joints' linearization drift
   // (SolverSettings::relaxCancelsDrift; unset: the solver's own).
   std::optional<bool> relaxCancelsDrift;
+  // Threads sweeping independent islands (SolverSettings::threads; unset:
+  // the solver's own, 1).
+  std::optional<int> threads;
   double runawayEnergyGain = SolverSettings{}.runawayEnergyGain;
   double runawaySpeed = SolverSettings{}.runawaySpeed;
   // World::setContactPersistence: a pair ODE's collider gives one or two

@@ -82,6 +82,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.islandRows) dWorldSetBlockIslandBlockRows(w, *o.islandRows);
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
   if (o.relaxDrift) dWorldSetBlockRelaxDrift(w, *o.relaxDrift ? 1 : 0);
+  if (o.threads) dWorldSetBlockThreads(w, *o.threads);
   if (o.persistence) dWorldSetBlockContactPersistence(w, *o.persistence);
   if (o.tolerance) dWorldSetBlockTolerance(w, *o.tolerance);
   if (coreCollision(s)) {
@@ -296,6 +297,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.islandRows = whole(text, key, value, 0, 1000000);
   } else if (key == "max_turn") {
     o.maxTurn = decimal(text, key, value, 0.0, 10.0);
+  } else if (key == "threads") {
+    o.threads = whole(text, key, value, 0, 256);
   } else if (key == "relax_drift") {
     o.relaxDrift = flag(text, key, value);
   } else if (key == "persistence") {
@@ -329,6 +332,7 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"island_rows", "blockstep: island blocks up to this many joint rows, 0: off"},
           {"max_turn", "blockstep: more sub-steps past this turn per sub-step, rad, 0: off"},
           {"relax_drift", "blockstep: relax closes the joints' linearization drift, 0 or 1"},
+          {"threads", "blockstep: threads sweeping independent islands, 0: one per core"},
           {"persistence", "blockstep: contact persistence, m, 0: off"},
           {"tolerance", "blockstep: stop sweeping below this residual, m/s, 0: off"},
           {"collision",

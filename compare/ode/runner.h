@@ -44,6 +44,7 @@ struct Overrides {
   std::optional<int> islandRows;      // island blocks up to this many joint rows (0: off)
   std::optional<double> maxTurn;      // rad per sub-step before more sub-steps (0: off)
   std::optional<bool> relaxDrift;     // relax closes the joints' linearization drift
+  std::optional<int> threads;         // threads sweeping independent islands (0: per core)
   std::optional<double> persistence;  // contact persistence, m (0: off)
   std::optional<double> tolerance;    // stop sweeping below this residual, m/s (0: off)
   // Who collides: the scene's dSpaceCollide once a frame (unset), or

@@ -105,18 +105,29 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
   deltasSize_ = deltasSize;
 }
 
-void IslandBlocks::factorAll(const std::vector<ConstraintBlock>& blocks,
-                             std::vector<ConstraintRow>& rows,
-                             const std::vector<SolverBody>& bodies) {
-  // Both grow only while warming up.
+void IslandBlocks::prepareFactors() {
+  // All grow only while warming up.
   if (factor_.size() < factorSize_) factor_.resize(factorSize_);
   if (weights_.size() < weightsSize_) weights_.resize(weightsSize_);
   if (deltas_.size() < deltasSize_) deltas_.resize(deltasSize_);
   if (boundedStep_.size() < bounded_.size()) boundedStep_.resize(bounded_.size());
-  for (const Island& isl : islands_) {
-    factor(isl, blocks, rows, bodies);
-    coupleBounded(isl, blocks, rows, bodies);
-  }
+  if (solveScratch_.size() < entryRow_.size()) solveScratch_.resize(entryRow_.size());
+  if (factorScratch_.size() < 2 * entryRow_.size()) factorScratch_.resize(2 * entryRow_.size());
+}
+
+void IslandBlocks::factorOne(int k, const std::vector<ConstraintBlock>& blocks,
+                             std::vector<ConstraintRow>& rows,
+                             const std::vector<SolverBody>& bodies) {
+  factor(islands_[k], blocks, rows, bodies);
+  coupleBounded(islands_[k], blocks, rows, bodies);
+}
+
+void IslandBlocks::factorAll(const std::vector<ConstraintBlock>& blocks,
+                             std::vector<ConstraintRow>& rows,
+                             const std::vector<SolverBody>& bodies) {
+  prepareFactors();
+  for (int k = 0; k < count(); ++k)
+    factorOne(k, blocks, rows, bodies);
 }
 
 // Reverse Cuthill-McKee over the island's joints (neighbours: joints that
@@ -219,9 +230,8 @@ void IslandBlocks::factor(const Island& isl, const std::vector<ConstraintBlock>&
   // in a closed loop with CFM 0) leaves that direction to the other rows,
   // as the per-joint LDL^T does (ldlt.h).
   const double tiny = 1e-12 * (scale > 0.0 ? scale : 1.0);
-  rhs_.resize(std::max<std::size_t>(rhs_.size(), 2 * static_cast<std::size_t>(n)));
-  double* D = rhs_.data();
-  double* invD = rhs_.data() + n;
+  double* D = &factorScratch_[2 * static_cast<std::size_t>(isl.firstEntry)];
+  double* invD = D + n;
   for (std::int32_t i = 0; i < n; ++i) {
     double* Li = F + static_cast<std::ptrdiff_t>(i) * n;
     for (std::int32_t j = first[i]; j < i; ++j) {
@@ -271,8 +281,10 @@ void IslandBlocks::coupleBounded(const Island& isl, const std::vector<Constraint
   const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
   const std::int32_t* blockOf = &entryBlock_[isl.firstEntry];
   const std::int32_t* islandBody = &islandBodies_[isl.firstBody];
-  for (std::int32_t k = 0; k < isl.bodyCount; ++k)
-    bodyLocal_[islandBody[k]] = k;
+  // Immovable bodies are skipped (addRow): islands share them.
+  for (std::int32_t k = 0; k < isl.bodyCount; ++k) {
+    if (!immovable(bodies[islandBody[k]])) bodyLocal_[islandBody[k]] = k;
+  }
   // Adds a row's M^-1 J^T times p to a bounded row's velocity changes.
   auto addRow = [&](Vec3* delta, const ConstraintRow& row, const ConstraintBlock& blk, double p) {
     for (int side = 0; side < 2; ++side) {
@@ -293,9 +305,8 @@ void IslandBlocks::coupleBounded(const Island& isl, const std::vector<Constraint
       w[i] = coupling(rows[rowOf[i]], blocks[blockOf[i]], row, blk, bodies);
     double kbb = rowDiagonal(row, bodies[blk.bodyA], bodies[blk.bodyB]);
     double uKu = 0.0;
-    // u is kept beside w only long enough to form u . K^-1 u (rhs_ holds
-    // 2n since factor()).
-    double* u = rhs_.data();
+    // u is kept beside w only long enough to form u . K^-1 u.
+    double* u = &factorScratch_[2 * static_cast<std::size_t>(isl.firstEntry)];
     std::copy(w, w + n, u);
     solveInPlace(isl, w);
     for (std::int32_t i = 0; i < n; ++i) {
@@ -340,11 +351,8 @@ void IslandBlocks::solveBounded(int island, bool useBias,
     row.impulse = next;
     boundedStep_[k] = dP;
     const Vec3* delta = &deltas_[br.deltas];
-    for (std::int32_t b = 0; b < isl.bodyCount; ++b) {
-      SolverBody& body = bodies[islandBody[b]];
-      body.v += dP * delta[2 * b];
-      body.w += dP * delta[2 * b + 1];
-    }
+    for (std::int32_t b = 0; b < isl.bodyCount; ++b)
+      addVelocity(bodies[islandBody[b]], dP * delta[2 * b], dP * delta[2 * b + 1]);
   }
   for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
     const double dP = boundedStep_[k];
@@ -361,7 +369,8 @@ void IslandBlocks::solve(int island, bool useBias, const std::vector<ConstraintB
   const std::int32_t n = isl.size;
   const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
   const std::int32_t* blockOf = &entryBlock_[isl.firstEntry];
-  double* x = rhs_.data();
+  // Each island its own part of the scratch: islands may be solved at once.
+  double* x = &solveScratch_[isl.firstEntry];
   for (std::int32_t i = 0; i < n; ++i) {
     const ConstraintRow& row = rows[rowOf[i]];
     const ConstraintBlock& blk = blocks[blockOf[i]];

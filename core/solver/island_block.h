@@ -62,6 +62,13 @@ class IslandBlocks {
   // Bounded rows with a mass-relative spring get their gamma here.
   void factorAll(const std::vector<ConstraintBlock>& blocks, std::vector<ConstraintRow>& rows,
                  const std::vector<SolverBody>& bodies);
+  // The same in parts, so islands can be factored at once: the storage
+  // first, then factorOne for each of the count() islands (any order, any
+  // thread: each writes only its own).
+  void prepareFactors();
+  int count() const { return static_cast<int>(islands_.size()); }
+  void factorOne(int k, const std::vector<ConstraintBlock>& blocks,
+                 std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
 
   // Whether island i's joint equality rows are solved here (the sweep
   // then skips the per-joint equality blocks of that island).
@@ -144,7 +151,9 @@ class IslandBlocks {
   std::vector<std::int32_t> entryBlock_;  // its block
   std::vector<std::int32_t> first_;       // first column of its profile (island-local)
   std::vector<double> factor_;            // L below the diagonal, 1/D on it (row-major)
-  std::vector<double> rhs_;
+  std::vector<double> rhs_;               // the guard's scratch (one island at a time)
+  std::vector<double> solveScratch_;      // per covered row: solve()'s right side, by island
+  std::vector<double> factorScratch_;     // two per covered row: factor()'s D, 1/D, then u
   std::size_t factorSize_ = 0;
   std::vector<BoundedRow> bounded_;
   std::vector<double> weights_;

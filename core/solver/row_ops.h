@@ -18,11 +18,19 @@ inline double rowDiagonal(const ConstraintRow& row, const SolverBody& a, const S
          b.invMass * row.linB.squaredNorm() + row.angB.dot(row.invIangB);
 }
 
+// Adds a velocity change to a body. An immovable body (the static frame,
+// a kinematic body: no inverse mass) is never written: islands share it,
+// and islands swept on different threads must not write the same memory
+// (they would only add zero, but racing).
+inline void addVelocity(SolverBody& body, const Vec3& dv, const Vec3& dw) {
+  if (body.invMass == 0.0) return;
+  body.v += dv;
+  body.w += dw;
+}
+
 inline void applyImpulse(const ConstraintRow& row, double dP, SolverBody& a, SolverBody& b) {
-  a.v += (a.invMass * dP) * row.linA;
-  a.w += dP * row.invIangA;
-  b.v += (b.invMass * dP) * row.linB;
-  b.w += dP * row.invIangB;
+  addVelocity(a, (a.invMass * dP) * row.linA, dP * row.invIangA);
+  addVelocity(b, (b.invMass * dP) * row.linB, dP * row.invIangB);
 }
 
 // Relax sweeps remove the velocity that position correction added. A row

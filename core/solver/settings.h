@@ -33,6 +33,7 @@ struct SolverSettings {
   // of a small scene takes seconds, and the numbers are typing mistakes.
   static constexpr int kMaxIterations = 100000;
   static constexpr int kMaxSubsteps = 1000;
+  static constexpr int kMaxThreads = 256;
   // The sub-stepped preset's turn per sub-step (maxTurnPerSubstep).
   static constexpr double kMaxTurnPerSubstep = 0.1;
 
@@ -86,6 +87,11 @@ struct SolverSettings {
   // whatever the mass ratios (a light body carrying heavy ones), which
   // per-joint Gauss-Seidel is not. 0: one block per joint, the paper's.
   int islandBlockRows = 0;
+  // Threads that sweep independent islands at once (TBB): the result is
+  // bitwise the same whatever the count, as islands share no movable
+  // body. 1: the calling thread only; 0: one per core. Each island is
+  // still swept by one thread.
+  int threads = 1;
   Integrator integrator = Integrator::SemiImplicitEuler;
   // Gyroscopic term w x (I w), integrated implicitly (off by default, as
   // section 4.1 suggests).

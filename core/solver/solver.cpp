@@ -1,5 +1,11 @@
 #include "core/solver/solver.h"
 
+#include <oneapi/tbb/blocked_range.h>
+#include <oneapi/tbb/info.h>
+#include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/partitioner.h>
+#include <oneapi/tbb/task_arena.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -123,6 +129,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   stats.solveSeconds = 0.0;
 
   buildIslands(in);
+  usePool(s);
   startX_.resize(in.bodies.size());
   startQ_.resize(in.bodies.size());
   for (std::size_t i = 0; i < in.bodies.size(); ++i) {
@@ -245,7 +252,9 @@ void Solver::buildIslands(const StepInput& in) {
     islandStart_[i + 1] += islandStart_[i];
   fill_.assign(islandStart_.begin(), islandStart_.end() - 1);
   sourceOfBlock_.resize(active_.size());
+  islandOfBlock_.resize(active_.size());
   for (std::size_t k = 0; k < active_.size(); ++k) {
+    islandOfBlock_[fill_[sourceIsland_[k]]] = sourceIsland_[k];
     sourceOfBlock_[fill_[sourceIsland_[k]]++] = active_[k];
   }
   islandActive_.resize(islandCount_);
@@ -266,7 +275,7 @@ void Solver::buildIslands(const StepInput& in) {
 }
 
 void Solver::integrateVelocities(const StepInput& in, const SolverSettings& s, double h) {
-  for (std::size_t i = 0; i < in.bodies.size(); ++i) {
+  forEachIndex(static_cast<int>(in.bodies.size()), [&](int i) {
     Body& b = in.bodies[i];
     SolverBody& sb = bodies_[i];
     startV_[i] = b.linearVelocity;
@@ -278,7 +287,7 @@ void Solver::integrateVelocities(const StepInput& in, const SolverSettings& s, d
         sb.v = b.linearVelocity;
         sb.w = b.angularVelocity;
       }
-      continue;
+      return;
     }
     const Mat3 R = b.orientation.toRotationMatrix();
     sb.invMass = b.invMass;
@@ -325,7 +334,7 @@ void Solver::integrateVelocities(const StepInput& in, const SolverSettings& s, d
     if (speed > b.maxAngularSpeed) w *= b.maxAngularSpeed / speed;
     sb.v = v;
     sb.w = w;
-  }
+  });
 }
 
 void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
@@ -378,12 +387,16 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
       }
     }
   }
-  for (int island = 0; island < islandCount_; ++island) {
-    const bool inIslandBlock = useIslandBlock_ && islandBlocks_.covers(island);
-    for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi)
-      finishBlock(s, h, blocks_[bi], inIslandBlock);
+  forEachIndex(static_cast<int>(blockCount), [&](int bi) {
+    const bool inIslandBlock = useIslandBlock_ && islandBlocks_.covers(islandOfBlock_[bi]);
+    finishBlock(s, h, blocks_[bi], inIslandBlock);
+  });
+  if (useIslandBlock_) {
+    islandBlocks_.prepareFactors();
+    forEachIndex(
+        islandBlocks_.count(), [&](int k) { islandBlocks_.factorOne(k, blocks_, rows_, bodies_); },
+        1);
   }
-  if (useIslandBlock_) islandBlocks_.factorAll(blocks_, rows_, bodies_);
 }
 
 void Solver::buildJointBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t j,
@@ -739,10 +752,8 @@ void Solver::solveCoupledRow(int rowIndex, bool useBias, ConstraintRow* eq, int 
   const double next = std::clamp(row.impulse - residual * c.effMass, row.lo, row.hi);
   const double dP = next - row.impulse;
   row.impulse = next;
-  a.v += dP * c.dvA;
-  a.w += dP * c.dwA;
-  b.v += dP * c.dvB;
-  b.w += dP * c.dwB;
+  addVelocity(a, dP * c.dvA, dP * c.dwA);
+  addVelocity(b, dP * c.dvB, dP * c.dwB);
   for (int i = 0; i < ne; ++i)
     eq[i].impulse += c.w[i] * dP;
 }
@@ -819,10 +830,8 @@ void Solver::solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& 
     dvB += dP[i] * eq[i].linB;
     dwB += dP[i] * eq[i].invIangB;
   }
-  a.v += a.invMass * dvA;
-  a.w += dwA;
-  b.v += b.invMass * dvB;
-  b.w += dwB;
+  addVelocity(a, a.invMass * dvA, dwA);
+  addVelocity(b, b.invMass * dvB, dwB);
 }
 
 // The normal block when some point would pull: a few projected
@@ -949,6 +958,53 @@ void Solver::islandResidual(int island, double& max, double& sumSq, int& count) 
   }
 }
 
+struct Solver::ThreadPool {
+  explicit ThreadPool(int n) : threads(n), arena(n) {}
+  int threads;
+  tbb::task_arena arena;
+};
+
+// A pool only where it can help: more than one thread asked for and more
+// than one island to sweep. The arena is made again only when the count
+// changes.
+void Solver::usePool(const SolverSettings& s) {
+  const int threads = s.threads > 0 ? std::min(s.threads, SolverSettings::kMaxThreads)
+                                    : tbb::info::default_concurrency();
+  pooled_ = threads > 1;
+  if (pooled_ && (!pool_ || pool_->threads != threads))
+    pool_ = std::make_shared<ThreadPool>(threads);
+}
+
+void Solver::forRanges(int n, int grain, void* fn, void (*range)(void*, int, int)) {
+  if (!pooled_ || n < 2 * grain) {
+    range(fn, 0, n);
+    return;
+  }
+  pool_->arena.execute([&] {
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, n, grain),
+        [&](const tbb::blocked_range<int>& r) { range(fn, r.begin(), r.end()); },
+        tbb::static_partitioner());
+  });
+}
+
+void Solver::sweepIslands(bool useBias, BlockMode mode) {
+  if (!pooled_ || islandCount_ < 2) {
+    for (int island = 0; island < islandCount_; ++island)
+      sweep(island, useBias, mode);
+    return;
+  }
+  pool_->arena.execute([&] {
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, islandCount_),
+        [&](const auto& range) {
+          for (int island = range.begin(); island != range.end(); ++island)
+            sweep(island, useBias, mode);
+        },
+        tbb::static_partitioner());
+  });
+}
+
 int Solver::solve(const SolverSettings& s, int substep, double budget, StepStats& stats) {
   // The clock only under a budget: a tiny world's step reads it 30 times
   // otherwise, 7% of a two-body pendulum's step.
@@ -957,6 +1013,13 @@ int Solver::solve(const SolverSettings& s, int substep, double budget, StepStats
   std::fill(islandActive_.begin(), islandActive_.end(), 1);
   int sweeps = 0;
   for (int it = 0; it < s.iterations; ++it) {
+    if (!measure) {  // every island, every sweep: they may go at once
+      if (islandCount_ == 0) break;
+      sweepIslands(true, s.blockMode);
+      ++sweeps;
+      if (budget != kNoBudget && seconds(start, Clock::now()) >= budget) break;
+      continue;
+    }
     bool anyActive = false;
     double max = 0.0, sumSq = 0.0;
     int count = 0;
@@ -985,9 +1048,9 @@ int Solver::solve(const SolverSettings& s, int substep, double budget, StepStats
 
 void Solver::integratePositions(const StepInput& in, const SolverSettings& s, double h) {
   const bool explicitEuler = s.integrator == Integrator::ExplicitEuler;
-  for (std::size_t i = 0; i < in.bodies.size(); ++i) {
+  forEachIndex(static_cast<int>(in.bodies.size()), [&](int i) {
     Body& b = in.bodies[i];
-    if (!b.alive || b.type == BodyType::Static) continue;
+    if (!b.alive || b.type == BodyType::Static) return;
     if (b.isDynamic()) {
       b.linearVelocity = bodies_[i].v;
       b.angularVelocity = bodies_[i].w;
@@ -1003,10 +1066,10 @@ void Solver::integratePositions(const StepInput& in, const SolverSettings& s, do
       const Vec3 turned = b.orientation * (before.conjugate() * b.angularVelocity);
       b.angularVelocity = turned;
       bodies_[i].w = turned;
-      continue;
+      return;
     }
     b.orientation = turn(b.orientation, b.rotation, w, h);
-  }
+  });
 }
 
 // One body's orientation update (RotationUpdate says which).
@@ -1081,10 +1144,8 @@ void Solver::relax(const SolverSettings& s, double h) {
       row.biasRelax = std::max(gap, 0.0) / h - row.target;
     }
   }
-  for (int it = 0; it < s.relaxIterations; ++it) {
-    for (int island = 0; island < islandCount_; ++island)
-      sweep(island, false, s.blockMode);
-  }
+  for (int it = 0; it < s.relaxIterations; ++it)
+    sweepIslands(false, s.blockMode);
 }
 
 void Solver::storeImpulses(const StepInput& in, double h) {

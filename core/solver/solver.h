@@ -6,6 +6,8 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
+#include <type_traits>
 #include <vector>
 
 #include "core/body/body.h"
@@ -101,6 +103,26 @@ class Solver {
   void finish(const StepInput& in, StepStats& stats);
 
   void sweep(int island, bool useBias, BlockMode mode);
+  // One sweep of every island: on the calling thread, or spread over the
+  // pool's threads (islands share no movable body, so any order gives the
+  // same bits).
+  void sweepIslands(bool useBias, BlockMode mode);
+  void usePool(const SolverSettings& s);
+  // f(i) for every i in [0, n): on the pool's threads when there is one
+  // and n is worth it. Every f(i) must write only what is its own.
+  // grain: the fewest items worth handing to a thread.
+  template <class F>
+  void forEachIndex(int n, F&& f, int grain = 256) {
+    using Fn = std::remove_reference_t<F>;
+    forRanges(n, grain, &f, [](void* fn, int begin, int end) {
+      for (int i = begin; i < end; ++i)
+        (*static_cast<Fn*>(fn))(i);
+    });
+  }
+  void forRanges(int n, int grain, void* fn, void (*range)(void*, int, int));
+  struct ThreadPool;
+  std::shared_ptr<ThreadPool> pool_;   // kept while the thread count stays
+  bool pooled_ = false;                // this step has more than one thread
   bool useIslandBlock_ = false;        // this step's settings ask for island blocks
   bool islandBlocksSelected_ = false;  // chosen on the step's first sub-step
   // The rigid-row softness inside island blocks (prepare() says why).
@@ -144,6 +166,7 @@ class Solver {
   std::vector<std::int32_t> islandOfRoot_;
   std::vector<std::int32_t> sourceIsland_;
   std::vector<std::int32_t> fill_;
+  std::vector<std::int32_t> islandOfBlock_;
   std::vector<std::int32_t> islandStart_;
   std::vector<std::uint8_t> islandActive_;
   std::vector<std::int32_t> active_;

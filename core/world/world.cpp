@@ -418,6 +418,9 @@ void World::validateSettings(const SolverSettings& s) const {
                 std::to_string(SolverSettings::kMaxIterations) + "]");
   if (!(s.maxTurnPerSubstep >= 0.0) || !std::isfinite(s.maxTurnPerSubstep))
     throw Error("the turn per sub-step must be >= 0 and finite (0: a fixed sub-step count)");
+  if (s.threads < 0 || s.threads > SolverSettings::kMaxThreads)
+    throw Error("threads must be in [0, " + std::to_string(SolverSettings::kMaxThreads) +
+                "] (0: one per core)");
   if (s.maxSubstepFactor < 1 || s.maxSubstepFactor > SolverSettings::kMaxSubsteps)
     throw Error("the sub-step factor must be in [1, " +
                 std::to_string(SolverSettings::kMaxSubsteps) + "]");

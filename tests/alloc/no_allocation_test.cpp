@@ -31,6 +31,25 @@ TEST(NoAllocation, StepAllocatesNothingAfterWarmUp) {
   }
 }
 
+// The same with two threads sweeping islands and sharing out the bodies
+// and blocks (TBB's tasks come from its own pools once warmed up).
+TEST(NoAllocation, StepOnTwoThreadsAllocatesNothingAfterWarmUp) {
+  for (const std::string& name : scenes::sceneNames()) {
+    SCOPED_TRACE(name);
+    scenes::Scene scene;
+    scenes::makeScene(name, scene);
+    SolverSettings s = SolverSettings::subStepped(4);
+    s.threads = 2;
+    scene.world.setSettings(s);
+    for (int i = 0; i < 60; ++i)
+      scene.world.step(scene.frameStep);
+    const long before = test::allocationCount();
+    for (int i = 0; i < 20; ++i)
+      scene.world.step(scene.frameStep);
+    EXPECT_EQ(test::allocationCount() - before, 0);
+  }
+}
+
 TEST(NoAllocation, TheCounterSeesAllocations) {
   // Guards the test above against a counter that never counts.
   const long before = test::allocationCount();

@@ -5,6 +5,8 @@
 // program's moved callback may step another world from inside a step.
 #include <atomic>
 #include <cmath>
+#include <cstring>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -161,6 +163,99 @@ TEST(PluginThreads, MovedCallbackSteppingAnotherWorldKeepsEveryCallback) {
   // Both worlds fell as free bodies do: 3 steps of the outer, 3 of the inner.
   const double fallen = 5.0 - dBodyGetPosition(innerBodies[4])[2];
   EXPECT_NEAR(fallen, 0.5 * 9.81 * (3 * kStep) * (3 * kStep), 0.02);
+}
+
+// Islands swept on several threads (dWorldSetBlockThreads): 200 hinge
+// chains of three links (enough bodies and blocks for their loops to be
+// shared out too), each set swinging at its own rate (island
+// blocks, one per chain), and 20 boxes dropped onto the ground, held by
+// contacts made each step. The islands share no movable body, so every
+// thread count must give the same bits as one thread.
+struct ManyIslands {
+  OdeScene s;
+  std::vector<dBodyID> boxes;
+  dJointGroupID contacts = dJointGroupCreate(0);
+
+  explicit ManyIslands(int threads) {
+    for (int c = 0; c < 200; ++c) {
+      dBodyID parent = nullptr;
+      for (int i = 0; i < 3; ++i) {
+        dBodyID link = s.box(0.3 * (i + 1), 2.0 * c, 3.0, 1.0, 0.1);
+        dBodySetLinearVel(link, 0.0, 0.0, -0.005 * c * (i + 1));
+        dJointID h = s.add(dJointCreateHinge(s.world, 0), link, parent);
+        dJointSetHingeAnchor(h, 0.3 * i, 2.0 * c, 3.0);
+        dJointSetHingeAxis(h, 0.0, 1.0, 0.0);
+        parent = link;
+      }
+    }
+    for (int k = 0; k < 20; ++k) {
+      boxes.push_back(s.box(-3.0, 2.0 * k, 0.1 + 0.01 * k, 1.0, 0.2));
+      dBodySetAngularVel(boxes.back(), 0.0, 0.0, 0.1 * k);
+    }
+    dWorldSetBlockSubsteps(s.world, 4);
+    dWorldSetBlockThreads(s.world, threads);
+  }
+  ~ManyIslands() { dJointGroupDestroy(contacts); }
+
+  void step() {
+    dJointGroupEmpty(contacts);
+    for (dBodyID box : boxes) {
+      const dReal* p = dBodyGetPosition(box);
+      const double depth = 0.1 - p[2];
+      if (depth < -1e-3) continue;
+      for (int k = 0; k < 4; ++k) {
+        dContact c{};
+        c.surface.mu = 0.5;
+        c.geom.pos[0] = p[0] + (k & 1 ? 0.1 : -0.1);
+        c.geom.pos[1] = p[1] + (k & 2 ? 0.1 : -0.1);
+        c.geom.normal[2] = 1.0;
+        c.geom.depth = depth;
+        dJointAttach(dJointCreateContact(s.world, contacts, &c), box, nullptr);
+      }
+    }
+    ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1) << dWorldGetBlockStepMessage(s.world);
+  }
+
+  std::vector<double> state() const {
+    std::vector<double> out;
+    for (dBodyID b : s.bodies) {
+      for (const dReal* v : {dBodyGetPosition(b), dBodyGetLinearVel(b), dBodyGetAngularVel(b)})
+        out.insert(out.end(), v, v + 3);
+      out.insert(out.end(), dBodyGetQuaternion(b), dBodyGetQuaternion(b) + 4);
+    }
+    return out;
+  }
+};
+
+std::vector<double> runIslands(int threads) {
+  ManyIslands scene(threads);
+  EXPECT_EQ(dWorldGetBlockThreads(scene.s.world), threads);
+  for (int k = 0; k < 60; ++k)
+    scene.step();
+  return scene.state();
+}
+
+TEST(PluginThreads, IslandsSweptOnSeveralThreadsGiveTheBitsOfOne) {
+  const std::vector<double> one = runIslands(1);
+  // The chains swung apart and the boxes came to rest on their contacts.
+  EXPECT_NE(one[0], 0.3);
+  for (int threads : {2, 3, 0}) {
+    const std::vector<double> many = runIslands(threads);
+    ASSERT_EQ(many.size(), one.size());
+    EXPECT_EQ(std::memcmp(many.data(), one.data(), one.size() * sizeof(double)), 0)
+        << threads << " threads";
+  }
+}
+
+TEST(PluginThreads, AThreadCountOutOfRangeIsRefused) {
+  OdeScene s;
+  testing::internal::CaptureStderr();
+  dWorldSetBlockThreads(s.world, -1);
+  dWorldSetBlockThreads(s.world, 100000);
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(dWorldGetBlockThreads(s.world), 1);
+  EXPECT_NE(said.find("dWorldSetBlockThreads(-1)"), std::string::npos) << said;
+  EXPECT_NE(said.find("dWorldSetBlockThreads(100000)"), std::string::npos) << said;
 }
 
 }  // namespace

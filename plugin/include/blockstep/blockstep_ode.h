@@ -83,6 +83,12 @@ ODE_API dReal dWorldGetBlockMaxTurn(dWorldID w);
  * solver that relaxes. BLOCKSTEP_RELAX_DRIFT=0|1. */
 ODE_API void dWorldSetBlockRelaxDrift(dWorldID w, int on);
 ODE_API int dWorldGetBlockRelaxDrift(dWorldID w);
+/* Threads that sweep a step's independent islands at once (TBB): 1 (the
+ * default) the calling thread only, 0 one per core. Each island is swept
+ * by one thread, so the result is bitwise the same whatever the count; a
+ * world of one island gains nothing. BLOCKSTEP_THREADS=N. */
+ODE_API void dWorldSetBlockThreads(dWorldID w, int threads);
+ODE_API int dWorldGetBlockThreads(dWorldID w);
 /* The runaway guard: an island whose kinetic energy grows beyond what its
  * forces, motors and position corrections explain by more than
  * energyGain (default 100, growth carried over steps), or in which a body
