@@ -59,6 +59,7 @@ struct Options {
   bool refineWhole = false;  // ... the whole demo refined, collision included (--refine-whole)
   long refineFrames = 0;     // ... after this many frames (default: all)
   std::vector<std::pair<std::string, double>> ignored;  // drawn markers, not bodies
+  std::vector<std::string> blockstepEnvironment;        // KEY=VALUE for blockstep's runs only
 };
 
 [[noreturn]] void usage(const std::string& why) {
@@ -67,7 +68,7 @@ struct Options {
                "--workdir DIR [--mode end-state|joints|inertia] [--frames N] [--keys K] "
                "[--arg A]... [--floor M] [--ignore KIND[:SIZE]]... [--differs REASON] "
                "[--unmatched REASON] [--chaotic REASON] [--guard-fires REASON] [--refine N | "
-               "--refine-whole N [--refine-frames F]]\n",
+               "--refine-whole N [--refine-frames F]] [--blockstep-env BLOCKSTEP_NAME=VALUE]...\n",
                why.c_str());
   std::exit(2);
 }
@@ -113,7 +114,11 @@ Options parse(int argc, char** argv) {
       o.refineWhole = true;
     } else if (flag == "--refine-frames")
       o.refineFrames = std::stol(value);
-    else if (flag == "--ignore") {
+    else if (flag == "--blockstep-env") {
+      if (value.rfind("BLOCKSTEP_", 0) != 0 || value.find('=') == std::string::npos)
+        usage("--blockstep-env takes BLOCKSTEP_NAME=VALUE, not " + value);
+      o.blockstepEnvironment.push_back(value);
+    } else if (flag == "--ignore") {
       // kind or kind:size (contact markers a demo draws vary in number)
       const std::size_t colon = value.find(':');
       o.ignored.emplace_back(value.substr(0, colon), colon == std::string::npos
@@ -182,6 +187,10 @@ Run runDemo(const Options& o, const std::string& label, Stepping stepping,
   env.push_back("BSCOMPAT_RNG=split");
   for (const std::string& e : extraEnvironment)
     env.push_back(e);
+  if (stepping == Stepping::Blockstep) {
+    for (const std::string& e : o.blockstepEnvironment)
+      env.push_back(e);
+  }
 
   std::vector<char*> envp, argv;
   for (std::string& e : env)
