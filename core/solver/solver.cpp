@@ -1125,11 +1125,14 @@ void Solver::relax(const SolverSettings& s, double h) {
   // must allow only what is left of it, or it lets a contact close a gap
   // the position update already closed (Box2D recomputes the separation
   // from the bodies' motion in each stage for the same reason).
+  // One-sided rows are a manifold's normals and a joint's bounded rows
+  // (limits): a joint's equality rows, most of a cloth's, are not read.
   for (const ConstraintBlock& blk : blocks_) {
     const SolverBody& a = bodies_[blk.bodyA];
     const SolverBody& b = bodies_[blk.bodyB];
     ConstraintRow* rows = &rows_[blk.firstRow];
-    for (int i = 0; i < blk.rowCount(); ++i) {
+    const int end = blk.unilateral ? blk.equality : blk.rowCount();
+    for (int i = blk.unilateral ? 0 : blk.equality; i < end; ++i) {
       ConstraintRow& row = rows[i];
       if (row.biasKind != RowBias::Speculative || row.biasRelax < -row.target)
         continue;  // bouncing
