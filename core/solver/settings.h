@@ -183,7 +183,7 @@ struct StepStats {
   int blocks = 0;
   int rows = 0;
   double collideSeconds = 0.0;            // the world's own collision (World::collide)
-  double solveSeconds = 0.0;              // prepare + warm start + sweeps + relax
+  double solveSeconds = 0.0;              // the sub-steps: integration, prepare, sweeps, relax
   double stepSeconds = 0.0;               // the whole step
   std::vector<ResidualSample> residuals;  // when recorded
   std::vector<JointId> brokenJoints;      // joints that broke in this step
