@@ -89,8 +89,8 @@ struct SolverSettings {
   int islandBlockRows = 0;
   // Threads that sweep independent islands at once (TBB): the result is
   // bitwise the same whatever the count, as islands share no movable
-  // body. 1: the calling thread only; 0: one per core. Each island is
-  // still swept by one thread.
+  // body. 1: the calling thread only; 0: one per core (also the most).
+  // Each island is still swept by one thread.
   int threads = 1;
   Integrator integrator = Integrator::SemiImplicitEuler;
   // Gyroscopic term w x (I w), integrated implicitly (off by default, as

@@ -975,8 +975,10 @@ struct Solver::ThreadPool {
 // than one island to sweep. The arena is made again only when the count
 // changes.
 void Solver::usePool(const SolverSettings& s) {
-  const int threads = s.threads > 0 ? std::min(s.threads, SolverSettings::kMaxThreads)
-                                    : tbb::info::default_concurrency();
+  // Never more than the machine's cores: TBB has no more workers to give
+  // (and says so on stderr when an arena asks for them).
+  const int cores = tbb::info::default_concurrency();
+  const int threads = s.threads > 0 ? std::min(s.threads, cores) : cores;
   pooled_ = threads > 1;
   if (pooled_ && (!pool_ || pool_->threads != threads))
     pool_ = std::make_shared<ThreadPool>(threads);

@@ -84,9 +84,11 @@ ODE_API dReal dWorldGetBlockMaxTurn(dWorldID w);
 ODE_API void dWorldSetBlockRelaxDrift(dWorldID w, int on);
 ODE_API int dWorldGetBlockRelaxDrift(dWorldID w);
 /* Threads that sweep a step's independent islands at once (TBB): 1 (the
- * default) the calling thread only, 0 one per core. Each island is swept
+ * default) the calling thread only, 0 one per core (never more than the
+ * cores: a larger count is taken as that). Each island is swept
  * by one thread, so the result is bitwise the same whatever the count; a
- * world of one island gains nothing. BLOCKSTEP_THREADS=N. */
+ * world of one island gains little (only its bodies and blocks are
+ * prepared in shares). BLOCKSTEP_THREADS=N. */
 ODE_API void dWorldSetBlockThreads(dWorldID w, int threads);
 ODE_API int dWorldGetBlockThreads(dWorldID w);
 /* The runaway guard: an island whose kinetic energy grows beyond what its
