@@ -998,20 +998,8 @@ void Solver::forRanges(int n, int grain, void* fn, void (*range)(void*, int, int
 }
 
 void Solver::sweepIslands(bool useBias, BlockMode mode) {
-  if (!pooled_ || islandCount_ < 2) {
-    for (int island = 0; island < islandCount_; ++island)
-      sweep(island, useBias, mode);
-    return;
-  }
-  pool_->arena.execute([&] {
-    tbb::parallel_for(
-        tbb::blocked_range<int>(0, islandCount_),
-        [&](const auto& range) {
-          for (int island = range.begin(); island != range.end(); ++island)
-            sweep(island, useBias, mode);
-        },
-        tbb::static_partitioner());
-  });
+  forEachIndex(
+      islandCount_, [&](int island) { sweep(island, useBias, mode); }, 1);
 }
 
 int Solver::solve(const SolverSettings& s, int substep, double budget, StepStats& stats) {

@@ -237,16 +237,18 @@ TEST(CompareRuns, ConvergenceStudyFromAStretchedChainMeetsDWorldStep) {
 // SCENES.md's figures, in one run: the 100:1 chain hanging at rest
 // stretches 0.2 m under quickstep 20, not at all under dWorldStep, and
 // blockstep holds it as dWorldStep does.
-TEST(CompareRuns, HangingChainAsScenesMdMeasures) {
+// A built-in scene stepped for 120 frames by one stepper.
+RunResult run120(const char* scene, const char* stepper) {
   RunOptions o;
   o.frames = 120;
-  auto measure = [&](const char* stepper) {
-    auto s = makeScene("chain");
-    return run(*s, parseStepper(stepper), o);
-  };
-  const RunResult quick = measure("quickstep:20");
-  const RunResult direct = measure("direct");
-  const RunResult block = measure("blockstep");
+  auto s = makeScene(scene);
+  return run(*s, parseStepper(stepper), o);
+}
+
+TEST(CompareRuns, HangingChainAsScenesMdMeasures) {
+  const RunResult quick = run120("chain", "quickstep:20");
+  const RunResult direct = run120("chain", "direct");
+  const RunResult block = run120("chain", "blockstep");
   std::printf(
       "  chain, 120 frames: max separation quickstep 20 %.3g m, dWorldStep %.3g m, "
       "blockstep %.3g m\n",
@@ -263,14 +265,8 @@ TEST(CompareRuns, HangingChainAsScenesMdMeasures) {
 // ratio, so even one sub-step a frame holds it; quickstep 20 stretches it
 // by metres (1.99 m over 1000 frames).
 TEST(CompareRuns, ThousandToOneHangingChainHoldsAtOneSubstep) {
-  RunOptions o;
-  o.frames = 120;
-  auto measure = [&](const char* stepper) {
-    auto s = makeScene("chain_heavy");
-    return run(*s, parseStepper(stepper), o);
-  };
-  const RunResult quick = measure("quickstep:20");
-  const RunResult block = measure("blockstep:substep:1");
+  const RunResult quick = run120("chain_heavy", "quickstep:20");
+  const RunResult block = run120("chain_heavy", "blockstep:substep:1");
   std::printf("  chain_heavy, 120 frames: max separation quickstep 20 %.3g m, blockstep %.3g m\n",
               quick.maxSeparation, block.maxSeparation);
   EXPECT_GT(quick.maxSeparation, 0.5);
