@@ -283,6 +283,10 @@ nlohmann::json sceneToJson(const Scene& s) {
         const double hi = dJointGetHingeParam(r.joint, dParamHiStop);
         if (std::isfinite(lo)) joint["lo"] = lo;
         if (std::isfinite(hi)) joint["hi"] = hi;
+        if (dJointGetHingeParam(r.joint, dParamFMax) > 0.0) {
+          joint["velocity"] = dJointGetHingeParam(r.joint, dParamVel);
+          joint["fmax"] = dJointGetHingeParam(r.joint, dParamFMax);
+        }
         break;
       }
       case JointKind::Fixed:
@@ -487,6 +491,13 @@ std::unique_ptr<Scene> sceneFromJson(const nlohmann::json& j) {
         if (lo > hi) r.at("lo").fail("must not be above hi");
         dJointSetHingeParam(h, dParamLoStop, lo);
         dJointSetHingeParam(h, dParamHiStop, hi);
+        if (joint.contains("velocity"))
+          dJointSetHingeParam(h, dParamVel, r.at("velocity").number(joint.at("velocity")));
+        if (joint.contains("fmax")) {
+          const double fmax = r.at("fmax").number(joint.at("fmax"));
+          if (fmax < 0.0) r.at("fmax").fail("must be >= 0");
+          dJointSetHingeParam(h, dParamFMax, fmax);
+        }
       } else if (type == "fixed") {
         s->fixed(b1, b2);
       } else if (type == "hinge2") {

@@ -16,7 +16,8 @@
 //               { "type": "box", "size": [..], "position": [..], "quaternion": [..] } ],
 //   "joints": [ { "type": "ball", "bodies": [i, j], "anchor": [..] },   (j = -1: the world)
 //               { "type": "hinge", "bodies": [i, j], "anchor": [..], "axis": [..],
-//                 "lo": -0.3, "hi": 0.8 },                             (stops optional)
+//                 "lo": -0.3, "hi": 0.8,                               (stops optional;
+//                 "velocity": -4, "fmax": 100 },                         a motor, optional)
 //               { "type": "fixed", "bodies": [i, j] },                 (fixed where they are)
 //               { "type": "hinge2", "bodies": [i, j], "anchor": [..],      (a wheel: j turns about
 //                 "steering": [..], "axle": [..], "lo": 0, "hi": 0,          the axle, steers about

@@ -422,9 +422,10 @@ void buildSoftCube(Scene& s) {
 // A static head sphere (r 0.1 m at z = 1.6) with 64 strands of 16
 // capsules (r 4 mm, 2 cm long, 1 g) on ball joints, rooted by a ball pin
 // at Fibonacci points of the upper half of the head and standing straight
-// out along its normal. Capsules collide with the head, the root ones and
-// hair-hair pairs not.
-void buildHair(Scene& s) {
+// out along its normal. Capsules collide with the head, the root ones not;
+// hair-hair pairs only with strandContacts (the paper's figure 6: "each
+// strand can collide with others"), jointed neighbours never.
+void buildHair(Scene& s, bool strandContacts) {
   constexpr int kStrands = 64, kSegments = 16;
   constexpr double kHeadR = 0.1, kHeadZ = 1.6, kSegLen = 0.02, kSegR = 0.004;
   dGeomID head = dCreateSphere(s.space(), kHeadR);
@@ -455,12 +456,75 @@ void buildHair(Scene& s) {
       dGeomID g = dCreateCapsule(s.space(), kSegR, kSegLen - 2 * kSegR);
       s.addGeom(g, b);
       dGeomSetCategoryBits(g, 2);
-      dGeomSetCollideBits(g, i == 0 ? 0 : 1);
+      dGeomSetCollideBits(g, i == 0 ? 0 : strandContacts ? 3 : 1);
       const double joint = i * kSegLen;
       s.ball(b, previous, along(joint, 0), along(joint, 1), along(joint, 2));
       previous = b;
     }
   }
+}
+
+// The paper's figure 4, a sheet of fabric rolled up: 32 x 16 spheres
+// (r 20 mm, 10 g) 50 mm apart on ball joints, their first row pinned to
+// the front of a roller (a 2 kg capsule, r 80 mm, along y, its axle
+// 0.3 m up: high enough for the whole roll to clear the ground) hinged to
+// the world and driven at 4 rad/s with up to 100 N m. The sheet runs from
+// the roller down at 45 degrees to the plane and lies on it; the roller
+// drags it in and winds it round, layer on layer: cells collide with the
+// ground, the roller and every cell but their joint neighbours, and
+// friction holds the layers.
+void buildClothRoll(Scene& s) {
+  groundPlane(s);
+  constexpr int kLong = 32, kWide = 16;
+  constexpr double kCell = 0.05, kCellR = 0.02, kRollerR = 0.08, kAxleZ = 0.3;
+  dBodyID roller = capsule(s, 2.0, kRollerR, kWide * kCell, 0.0, 0.0, kAxleZ);
+  dMatrix3 R;
+  dRFromAxisAndAngle(R, 1, 0, 0, -M_PI / 2);  // the capsule's z axis along world y
+  dBodySetRotation(roller, R);
+  const dVector3 centre = {0.0, 0.0, kAxleZ}, axle = {0, 1, 0};
+  dJointID drive = s.hinge(roller, nullptr, centre, axle);
+  // Negative about +y: the roller's front (+x) side goes up, taking the
+  // pinned row up and over.
+  dJointSetHingeParam(drive, dParamVel, -4.0);
+  dJointSetHingeParam(drive, dParamFMax, 100.0);
+  // Row i's centre (x, z): down the slope from the roller's front, then
+  // along the plane.
+  std::vector<double> rowX(kLong), rowZ(kLong);
+  rowX[0] = kRollerR + kCellR, rowZ[0] = kAxleZ;
+  for (int i = 1; i < kLong; ++i) {
+    const double down = std::min(kCell * M_SQRT1_2, rowZ[i - 1] - kCellR);
+    rowZ[i] = rowZ[i - 1] - down;
+    rowX[i] = rowX[i - 1] + std::sqrt(kCell * kCell - down * down);
+  }
+  std::vector<dBodyID> cells(static_cast<std::size_t>(kLong) * kWide);
+  auto at = [&](int i, int j) -> dBodyID& {
+    return cells[static_cast<std::size_t>(i) * kWide + j];
+  };
+  auto y = [&](int j) { return (j - 0.5 * (kWide - 1)) * kCell; };
+  s.drawHints().surfaceColumns = kWide;
+  for (int i = 0; i < kLong; ++i) {
+    for (int j = 0; j < kWide; ++j) {
+      dMass m;
+      dMassSetSphereTotal(&m, 0.01, kCellR);
+      at(i, j) = s.addBody(m, rowX[i], y(j), rowZ[i]);
+      s.drawHints().surface.push_back(static_cast<int>(s.bodies().size()) - 1);
+      dGeomID g = dCreateSphere(s.space(), kCellR);
+      s.addGeom(g, at(i, j));
+      dGeomSetCategoryBits(g, 2);
+      dGeomSetCollideBits(g, 3);
+    }
+  }
+  for (int i = 0; i < kLong; ++i) {
+    for (int j = 0; j < kWide; ++j) {
+      if (i + 1 < kLong)
+        s.ball(at(i, j), at(i + 1, j), 0.5 * (rowX[i] + rowX[i + 1]), y(j),
+               0.5 * (rowZ[i] + rowZ[i + 1]));
+      if (j + 1 < kWide) s.ball(at(i, j), at(i, j + 1), rowX[i], y(j) + 0.5 * kCell, rowZ[i]);
+    }
+  }
+  for (int j = 0; j < kWide; ++j)
+    s.ball(at(0, j), roller, rowX[0], y(j), rowZ[0]);
+  s.setProbe(at(kLong - 1, kWide / 2));  // the free edge: how far it was wound in
 }
 
 // A mass ratio carried through contacts: a 1 kg plank (2 m x 0.3 m x
@@ -562,8 +626,15 @@ const std::map<std::string, SceneKind>& builders() {
        {[](Scene& s, int) { buildSoftCube(s); },
         "5 x 5 x 5 boxes on 300 fixed joints, dropped turned on the plane"}},
       {"hair",
-       {[](Scene& s, int) { buildHair(s); },
+       {[](Scene& s, int) { buildHair(s, false); },
         "64 strands of 16 capsules on ball joints standing out of a head sphere"}},
+      {"hair_touching",
+       {[](Scene& s, int) { buildHair(s, true); },
+        "hair with strand-strand contacts (the paper's figure 6)"}},
+      {"cloth_roll",
+       {[](Scene& s, int) { buildClothRoll(s); },
+        "32 x 16 spheres on ball joints wound onto a driven roller, layer on layer "
+        "(the paper's figure 4: self-collision and friction)"}},
       {"ragdoll_pile",
        {[](Scene& s, int) { buildRagdollPile(s); },
         "eight ragdolls dropped in turned pairs onto the plane and one another"}},
