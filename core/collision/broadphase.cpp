@@ -9,7 +9,7 @@ Aabb shapeAabb(const Shape& s, const ShapePose& pose, double grow) {
   Aabb box;
   if (!s.alive) return box;
   const Mat3& R = pose.rotation;
-  Vec3 half;
+  Vec3 half = Vec3::Zero();
   Vec3 centre = pose.position;
   switch (s.kind) {
     case Shape::Kind::Sphere:

@@ -16,6 +16,43 @@ ShapePose poseOf(const Shape& s, const std::vector<Body>& bodies) {
                    (b.orientation * s.localOrientation).toRotationMatrix()};
 }
 
+// The distance from the body's centre to the shape's farthest point.
+double farthestPoint(const Shape& s) {
+  double own = 0.0;
+  switch (s.kind) {
+    case Shape::Kind::Sphere:
+      own = s.radius;
+      break;
+    case Shape::Kind::Capsule:
+      own = s.halfLength + s.radius;
+      break;
+    case Shape::Kind::Cylinder:
+      own = std::hypot(s.halfLength, s.radius);
+      break;
+    case Shape::Kind::Box:
+      own = s.halfExtents.norm();
+      break;
+    case Shape::Kind::Convex:
+      own = s.hull->boundingRadius();
+      break;
+    case Shape::Kind::Plane:
+      return 0.0;
+  }
+  return s.localPosition.norm() + own;
+}
+
+// How far the shape may move before the next collision, plus half the
+// resting margin, within the margin (CollisionSettings::margin).
+double reachOf(const Shape& s, const std::vector<Body>& bodies, const CollisionSettings& settings,
+               double h) {
+  const double most = settings.margin;
+  const double least = std::min(most, 0.5 * settings.restingMargin);
+  if (s.body == kWorldBody) return least;
+  const Body& b = bodies[s.body];
+  const double motion = (b.linearVelocity.norm() + b.angularVelocity.norm() * farthestPoint(s)) * h;
+  return std::isfinite(motion) ? std::min(most, least + motion) : most;
+}
+
 }  // namespace
 
 // The exact fast paths (sphere and box against planes, spheres and boxes
@@ -53,12 +90,16 @@ int collideShapes(const Shape& s1, const ShapePose& p1, const Shape& s2, const S
 
 void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
                        const CollisionSettings& settings, const std::vector<std::uint64_t>& jointed,
-                       std::vector<ContactManifold>& out) {
+                       double h, std::vector<ContactManifold>& out) {
   poses_.resize(shapes.size());
   boxes_.resize(shapes.size());
+  reach_.resize(shapes.size());
   for (std::size_t i = 0; i < shapes.size(); ++i) {
-    if (shapes[i].alive) poses_[i] = poseOf(shapes[i], bodies);
-    boxes_[i] = shapeAabb(shapes[i], poses_[i], 0.5 * settings.margin);
+    if (shapes[i].alive) {
+      poses_[i] = poseOf(shapes[i], bodies);
+      reach_[i] = reachOf(shapes[i], bodies, settings, h);
+    }
+    boxes_[i] = shapeAabb(shapes[i], poses_[i], reach_[i]);
   }
   broadPhase_.findPairs(boxes_, settings.broadPhase, pairs_);
   auto movable = [&](BodyId id) { return id != kWorldBody && bodies[id].type != BodyType::Static; };
@@ -78,7 +119,8 @@ void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>
     }
     ContactManifold m;
     bool swapped = false;
-    if (collideShapes(s1, poses_[i], s2, poses_[j], settings.margin, settings.boxBoxBySat, m,
+    if (collideShapes(s1, poses_[i], s2, poses_[j],
+                      std::min(settings.margin, reach_[i] + reach_[j]), settings.boxBoxBySat, m,
                       swapped) == 0) {
       continue;
     }

@@ -11,8 +11,15 @@
 namespace blockstep {
 
 struct CollisionSettings {
-  // Pairs closer than this get speculative contact points (m).
+  // Speculative reach (m). Each shape reaches as far as its body can move
+  // before the next collision, (|v| + |w| r) h with r the shape's farthest
+  // point from the body's centre, plus restingMargin / 2; a pair gets
+  // contact points within the sum of its two reaches, never more than
+  // margin. A fixed reach of `margin` gave each 8 mm capsule of a dense
+  // hair bundle the manifolds of some 19 neighbours (9,700 manifolds where
+  // 1,000 touched), and the solver swept them all every sub-step.
   double margin = 0.02;
+  double restingMargin = 0.004;
   // Bodies joined by a joint collide only when this is set.
   bool collideConnected = false;
   // Box against box by the separating-axis test with face clipping (the
@@ -58,14 +65,16 @@ int collideShapes(const Shape& s1, const ShapePose& p1, const Shape& s2, const S
 // order) from step to step, so a warmed-up scene allocates nothing.
 class Collider {
  public:
-  // Appends the manifolds of all touching pairs to `out`. `jointed` holds
-  // sorted keys (bodyPairKey) of pairs that do not collide.
+  // Appends the manifolds of all touching pairs to `out`, for a step of
+  // h seconds until the next collision (it sets the reach). `jointed`
+  // holds sorted keys (bodyPairKey) of pairs that do not collide.
   void collide(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
                const CollisionSettings& settings, const std::vector<std::uint64_t>& jointed,
-               std::vector<ContactManifold>& out);
+               double h, std::vector<ContactManifold>& out);
 
  private:
   std::vector<ShapePose> poses_;
+  std::vector<double> reach_;
   std::vector<Aabb> boxes_;
   std::vector<std::pair<int, int>> pairs_;
   BroadPhase broadPhase_;

@@ -478,7 +478,7 @@ void World::step(double h) {
   if (collision_.everySubstep && settings_.substeps > 1) {
     stepCollidingEachSubstep(h);
   } else {
-    stats_.collideSeconds = timedCollide();
+    stats_.collideSeconds = timedCollide(h);
     prepareContacts();
     solver_.step(StepInput{bodies_, joints_, contacts_, worldBody_, gravity_, h}, settings_,
                  stats_);
@@ -527,7 +527,7 @@ void World::stepCollidingEachSubstep(double h) {
   heldTypes_.clear();
   for (int k = 0; k < parts; ++k) {
     if (k > 0) contacts_.assign(callerContacts_.begin(), callerContacts_.end());
-    const double collideSeconds = timedCollide();
+    const double collideSeconds = timedCollide(h / parts);
     prepareContacts();
     StepInput in{bodies_, joints_, contacts_, worldBody_, gravity_, h / parts};
     in.penetrationStep = h;

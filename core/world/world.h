@@ -145,8 +145,8 @@ class World {
   void validateSettings(const SolverSettings& s) const;
   Shape checkedShape(const Shape& shape) const;
   void checkStateBeforeStep(double h) const;
-  void collide();
-  double timedCollide();  // collide(), returning the seconds it took
+  void collide(double h);         // for a step of h seconds until the next collision
+  double timedCollide(double h);  // collide(h), returning the seconds it took
   void prepareContacts();
   void carryContactPoints();
   void restoreRunaways();

@@ -154,13 +154,13 @@ void World::setContactPersistence(double d) {
   persistDistance_ = d;
 }
 
-double World::timedCollide() {
+double World::timedCollide(double h) {
   const auto start = std::chrono::steady_clock::now();
-  collide();
+  collide(h);
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void World::collide() {
+void World::collide(double h) {
   bool anyShape = false;
   for (const Shape& s : shapes_)
     anyShape |= s.alive;
@@ -174,7 +174,7 @@ void World::collide() {
     }
   }
   std::sort(jointedPairs_.begin(), jointedPairs_.end());
-  collider_.collide(shapes_, bodies_, collision_, jointedPairs_, contacts_);
+  collider_.collide(shapes_, bodies_, collision_, jointedPairs_, h, contacts_);
 }
 
 // Tangents, body-fixed anchors, and the impulses of the matching points of
