@@ -172,6 +172,10 @@ class World {
   std::vector<Shape> shapes_;
   std::vector<ContactManifold> contacts_;          // this step's
   std::vector<ContactManifold> previousContacts_;  // the last step's, sorted by body pair
+  // keepContactsForNextStep's sort: (pair key, index), and the manifolds
+  // gathered in that order.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keptOrder_;
+  std::vector<ContactManifold> sortedContacts_;
   std::vector<std::uint64_t> jointedPairs_;
   std::vector<std::int32_t> contactOrder_;  // this step's manifolds by body pair (prepareContacts)
   CollisionSettings collision_;
