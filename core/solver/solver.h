@@ -31,7 +31,8 @@ struct StepInput {
   double h;  // the whole step, s
   // The step whose rate caps how fast contacts push out of penetration
   // (Solver::penetrationRate): the caller's whole step when it steps in
-  // parts (collision every sub-step); 0: h.
+  // parts (collision every sub-step; the contacts are then fresh, and
+  // deep ones push out faster); 0: h.
   double penetrationStep = 0.0;
   // Clear the bodies' force and torque accumulators after the step; a
   // caller stepping in parts keeps them until its last part.
@@ -80,6 +81,8 @@ class Solver {
   void buildContactBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t c,
                          ConstraintBlock& blk);
   double penetrationRate(const ConstraintRow& row, const ConstraintBlock& blk, double h) const;
+  // Depth past which fresh contacts push out faster (penetrationRate), m.
+  static constexpr double kDeepPenetration = 0.002;
   double blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
                           bool inIslandBlock) const;
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk, bool inIslandBlock,
@@ -180,6 +183,7 @@ class Solver {
   int rowCount_ = 0;
   std::int32_t dummy_ = 0;
   double stepSize_ = 0.0;        // the whole step being taken (sub-steps divide it)
+  bool freshContacts_ = false;   // the contacts were found at this step's start (penetrationRate)
   double sinceStepStart_ = 0.0;  // when the current sub-step starts, s into the step
 };
 
