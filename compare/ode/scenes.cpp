@@ -112,14 +112,34 @@ dBodyID convexBody(Scene& s, const std::vector<double>& points, double density, 
 }
 
 // `count` random convex hulls (500 kg/m^3) dropped in a loose column onto
-// the plane: what ODE's one-point convex contacts leave rocking.
+// the plane: what ODE's one-point convex contacts leave rocking. Each is
+// placed where its bounding sphere clears the ground and the hulls before
+// it (placed by height alone, two started 64 mm into each other, and
+// every stepper's deepest contact was that).
 void buildHulls(Scene& s, int count) {
   groundPlane(s);
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> place(-0.6, 0.6);
+  struct Placed {
+    double x, y, z, radius;
+  };
+  std::vector<Placed> placed;
   for (int i = 0; i < count; ++i) {
     const std::vector<double> points = randomHullPoints(rng, 0.06);
-    convexBody(s, points, 500.0, place(rng), place(rng), 0.2 + 0.15 * i / 4);
+    double radius = 0.0;
+    for (std::size_t k = 0; k < points.size(); k += 3)
+      radius = std::max(radius, std::hypot(points[k], points[k + 1], points[k + 2]));
+    Placed p{0.0, 0.0, std::max(0.2 + 0.15 * i / 4, radius + 0.01), radius};
+    for (int tries = 1;; ++tries) {
+      p.x = place(rng), p.y = place(rng);
+      const bool clear = std::none_of(placed.begin(), placed.end(), [&](const Placed& q) {
+        return std::hypot(p.x - q.x, p.y - q.y, p.z - q.z) < p.radius + q.radius;
+      });
+      if (clear) break;
+      if (tries % 20 == 0) p.z += 0.05;  // a crowded height: go up
+    }
+    placed.push_back(p);
+    convexBody(s, points, 500.0, p.x, p.y, p.z);
   }
 }
 
