@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/collision/narrowphase.h"
+#include "core/collision/support.h"
 
 namespace blockstep {
 namespace {
@@ -16,40 +17,18 @@ ShapePose poseOf(const Shape& s, const std::vector<Body>& bodies) {
                    (b.orientation * s.localOrientation).toRotationMatrix()};
 }
 
-// The distance from the body's centre to the shape's farthest point.
-double farthestPoint(const Shape& s) {
-  double own = 0.0;
-  switch (s.kind) {
-    case Shape::Kind::Sphere:
-      own = s.radius;
-      break;
-    case Shape::Kind::Capsule:
-      own = s.halfLength + s.radius;
-      break;
-    case Shape::Kind::Cylinder:
-      own = std::hypot(s.halfLength, s.radius);
-      break;
-    case Shape::Kind::Box:
-      own = s.halfExtents.norm();
-      break;
-    case Shape::Kind::Convex:
-      own = s.hull->boundingRadius();
-      break;
-    case Shape::Kind::Plane:
-      return 0.0;
-  }
-  return s.localPosition.norm() + own;
-}
-
 // How far the shape may move before the next collision, plus half the
 // resting margin, within the margin (CollisionSettings::margin).
-double reachOf(const Shape& s, const std::vector<Body>& bodies, const CollisionSettings& settings,
-               double h) {
+double reachOf(const Shape& s, const ShapePose& pose, const std::vector<Body>& bodies,
+               const CollisionSettings& settings, double h) {
   const double most = settings.margin;
-  const double least = std::min(most, 0.5 * settings.restingMargin);
-  if (s.body == kWorldBody) return least;
+  const double least = std::max(0.0, std::min(most, 0.5 * settings.restingMargin));
+  if (s.body == kWorldBody) return least;  // planes and static world shapes do not move
   const Body& b = bodies[s.body];
-  const double motion = (b.linearVelocity.norm() + b.angularVelocity.norm() * farthestPoint(s)) * h;
+  // The shape's farthest point from the body's centre.
+  const PosedConvex convex(s, pose);
+  const double farthest = s.localPosition.norm() + convex.coreRadius() + convex.radius;
+  const double motion = (b.linearVelocity.norm() + b.angularVelocity.norm() * farthest) * h;
   return std::isfinite(motion) ? std::min(most, least + motion) : most;
 }
 
@@ -97,7 +76,7 @@ void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>
   for (std::size_t i = 0; i < shapes.size(); ++i) {
     if (shapes[i].alive) {
       poses_[i] = poseOf(shapes[i], bodies);
-      reach_[i] = reachOf(shapes[i], bodies, settings, h);
+      reach_[i] = reachOf(shapes[i], poses_[i], bodies, settings, h);
     }
     boxes_[i] = shapeAabb(shapes[i], poses_[i], reach_[i]);
   }

@@ -121,7 +121,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   nominalSubstep_ = in.h / std::max(1, s.substeps);
   peakTurnRate_ = 0.0;
   stepSize_ = in.penetrationStep > 0.0 ? in.penetrationStep : in.h;
-  freshContacts_ = in.penetrationStep > 0.0;
+  firstFreshContact_ = in.firstFreshContact;
 
   stats.substeps = substeps;
   stats.iterations = 0;
@@ -569,7 +569,7 @@ double Solver::penetrationRate(const ConstraintRow& row, const ConstraintBlock& 
   const double rate = softnessOf(*row.softness, h).biasRate(h);
   if (!blk.unilateral || row.softness->mode == Softness::Mode::Stiffness) return rate;
   const double slow = std::min(rate, row.softness->biasRate(stepSize_));
-  if (!freshContacts_) return slow;
+  if (blk.contact < firstFreshContact_) return slow;
   const double depth = -std::min(0.0, row.C + row.slop);
   const double fast = std::clamp(depth / kDeepPenetration - 1.0, 0.0, 1.0);
   return slow + fast * (rate - slow);

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <type_traits>
 #include <vector>
@@ -31,9 +32,13 @@ struct StepInput {
   double h;  // the whole step, s
   // The step whose rate caps how fast contacts push out of penetration
   // (Solver::penetrationRate): the caller's whole step when it steps in
-  // parts (collision every sub-step; the contacts are then fresh, and
-  // deep ones push out faster); 0: h.
+  // parts (collision every sub-step); 0: h.
   double penetrationStep = 0.0;
+  // Contacts from this index on were found where the bodies are at this
+  // step's start (collision every sub-step): their depth is measured, not
+  // carried from an earlier collision, and deep ones push out faster
+  // (Solver::penetrationRate). The caller's own contacts come before them.
+  std::int32_t firstFreshContact = std::numeric_limits<std::int32_t>::max();
   // Clear the bodies' force and torque accumulators after the step; a
   // caller stepping in parts keeps them until its last part.
   bool clearForces = true;
@@ -182,9 +187,9 @@ class Solver {
   RunawayGuard guard_;
   int rowCount_ = 0;
   std::int32_t dummy_ = 0;
-  double stepSize_ = 0.0;        // the whole step being taken (sub-steps divide it)
-  bool freshContacts_ = false;   // the contacts were found at this step's start (penetrationRate)
-  double sinceStepStart_ = 0.0;  // when the current sub-step starts, s into the step
+  double stepSize_ = 0.0;               // the whole step being taken (sub-steps divide it)
+  std::int32_t firstFreshContact_ = 0;  // StepInput::firstFreshContact (penetrationRate)
+  double sinceStepStart_ = 0.0;         // when the current sub-step starts, s into the step
 };
 
 }  // namespace blockstep

@@ -540,6 +540,7 @@ void World::stepCollidingEachSubstep(double h) {
     prepareContacts();
     StepInput in{bodies_, joints_, contacts_, worldBody_, gravity_, h / parts};
     in.penetrationStep = h;
+    in.firstFreshContact = static_cast<std::int32_t>(callerContacts_.size());
     in.clearForces = k == parts - 1;
     solver_.step(in, part, partStats_);
     keepContactsForNextStep();

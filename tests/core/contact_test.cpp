@@ -646,22 +646,45 @@ TEST(Contact, BounceOffAMovingSurfaceIsRelativeToIt) {
 }
 
 TEST(Contact, SpeculativeContactsNeverPull) {
-  // A box 12 mm above the ground, falling at 0.5 m/s, gets contact
-  // points (it reaches 8.3 mm in a step, plus the 4 mm resting margin),
-  // but falls freely until it touches: it falls 9.7 mm in the step, so
-  // exactly g for the first step, and it lands without bouncing or
-  // sticking above the ground.
-  World world;
-  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
-  const BodyId box = addBox(world, Vec3(0, 0, 0.25 + 0.012), 1.0, Vec3(0.25, 0.25, 0.25));
-  world.setLinearVelocity(box, Vec3(0, 0, -0.5));
-  world.step(1.0 / 60.0);
-  ASSERT_EQ(world.contacts().size(), 1u);
-  EXPECT_NEAR(world.body(box).linearVelocity.z(), -0.5 - 9.81 / 60.0, 1e-12);
-  for (int k = 0; k < 4; ++k)
-    EXPECT_EQ(world.contacts()[0].points[k].normalImpulse, 0.0);
-  test::stepN(world, 60, 1.0 / 60.0);
-  EXPECT_NEAR(world.body(box).position.z(), 0.25, 0.005 + 1e-4) << "rests within the slop";
+  // A box above the ground gets contact points when it can reach the
+  // ground within the step (its speed times the step, plus the 4 mm
+  // resting margin), but moves freely until it touches: exactly g for
+  // the first step, approaching (12 mm up at 0.5 m/s: it reaches 12.3 mm
+  // and falls 9.7) or leaving (3 mm up, rising), and it lands without
+  // bouncing or sticking above the ground.
+  for (const double vz : {-0.5, 0.5}) {
+    World world;
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    const double gap = vz < 0.0 ? 0.012 : 0.003;
+    const BodyId box = addBox(world, Vec3(0, 0, 0.25 + gap), 1.0, Vec3(0.25, 0.25, 0.25));
+    world.setLinearVelocity(box, Vec3(0, 0, vz));
+    world.step(1.0 / 60.0);
+    ASSERT_EQ(world.contacts().size(), 1u) << vz;
+    EXPECT_NEAR(world.body(box).linearVelocity.z(), vz - 9.81 / 60.0, 1e-12) << vz;
+    for (int k = 0; k < 4; ++k)
+      EXPECT_EQ(world.contacts()[0].points[k].normalImpulse, 0.0) << vz;
+    test::stepN(world, 60, 1.0 / 60.0);
+    EXPECT_NEAR(world.body(box).position.z(), 0.25, 0.005 + 1e-4) << "rests within the slop";
+  }
+}
+
+// The reach follows motion: a box at rest 10 mm above the ground (it
+// falls 2.7 mm in the step) gets no speculative points, where a fixed
+// 20 mm margin gave it four; thrown down at 1 m/s from 18 mm up (17 mm a
+// step) it gets them, and stops at the ground within the step.
+TEST(Contact, SpeculativeReachIsHowFarTheBodyCanMove) {
+  for (const double vz : {0.0, -1.0}) {
+    World world;
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    const double gap = vz < 0.0 ? 0.018 : 0.010;
+    const BodyId box = addBox(world, Vec3(0, 0, 0.25 + gap), 1.0, Vec3(0.25, 0.25, 0.25));
+    world.setLinearVelocity(box, Vec3(0, 0, vz));
+    world.step(1.0 / 60.0);
+    EXPECT_EQ(world.contacts().size(), vz < 0.0 ? 1u : 0u) << vz;
+    if (vz < 0.0) {
+      EXPECT_GT(world.body(box).position.z(), 0.25 - 0.001) << "stopped at the ground";
+    }
+  }
 }
 
 // What a collider that reports one deepest point does (ODE's cylinder-
