@@ -15,15 +15,51 @@ void addManifoldPoint(ContactManifold& m, const Vec3& surfacePointA, double sepa
   p.feature = feature;
 }
 
+std::uint32_t mixedFeatureId(std::uint64_t x) {
+  // splitmix64's finaliser: every input bit moves every output bit.
+  x ^= x >> 30;
+  x *= 0xbf58476d1ce4e5b9ull;
+  x ^= x >> 27;
+  x *= 0x94d049bb133111ebull;
+  x ^= x >> 31;
+  const auto id = static_cast<std::uint32_t>(x ^ (x >> 32));
+  return id != 0 ? id : 1;
+}
+
 int reduceToFour(const Vec3* pos, const double* sep, int n, int* keep) {
   if (n <= 4) {
+    // All of them, the deepest first: a contact block's LDL^T leaves a
+    // redundant row (four points on a plane) to the rows before it, so
+    // the first is the one whose push-out is never left out.
+    int deepest = 0;
+    for (int i = 1; i < n; ++i)
+      if (sep[i] < sep[deepest]) deepest = i;
     for (int i = 0; i < n; ++i)
       keep[i] = i;
+    std::swap(keep[0], keep[deepest]);
     return n;
   }
-  int a = 0;
-  for (int i = 1; i < n; ++i)
-    if (sep[i] < sep[a]) a = i;
+  // The first: the deepest, and among points as deep (to a thousandth of
+  // the patch's size) the one farthest out, so that a patch lying flat
+  // starts from a corner rather than from a point along an edge that
+  // rounding made a hair deeper.
+  Vec3 centre = Vec3::Zero();
+  double deepest = sep[0];
+  for (int i = 0; i < n; ++i) {
+    centre += pos[i];
+    deepest = std::min(deepest, sep[i]);
+  }
+  centre /= n;
+  double size2 = 0.0;
+  for (int i = 0; i < n; ++i)
+    size2 = std::max(size2, (pos[i] - centre).squaredNorm());
+  const double asDeep = deepest + 1e-3 * std::sqrt(size2);
+  int a = -1;
+  double farthest = -1.0;
+  for (int i = 0; i < n; ++i) {
+    const double d2 = (pos[i] - centre).squaredNorm();
+    if (sep[i] <= asDeep && d2 > farthest) farthest = d2, a = i;
+  }
   int b = -1;
   double best = -1.0;
   for (int i = 0; i < n; ++i) {
@@ -37,20 +73,30 @@ int reduceToFour(const Vec3* pos, const double* sep, int n, int* keep) {
     const double area = (pos[b] - pos[a]).cross(pos[i] - pos[a]).squaredNorm();
     if (area > best) best = area, c = i;
   }
+  // The fourth: the point adding most area to the triangle, which is the
+  // triangle it makes with the edge it lies beyond (signed against the
+  // triangle's normal). A point beside an edge but inside the triangle's
+  // strip adds nothing, however large its triangle with another edge: a
+  // box on a box of its size, turned a hair, clips to its corners and to
+  // points anywhere along nearly parallel edges, and the largest unsigned
+  // triangle chose one of those over the fourth corner.
+  const Vec3 normal = (pos[b] - pos[a]).cross(pos[c] - pos[a]);
+  const int corner[3] = {a, b, c};
   int d = -1;
-  best = -1.0;
+  best = 0.0;
   for (int i = 0; i < n; ++i) {
     if (i == a || i == b || i == c) continue;
-    // Area added by i to the triangle: the largest of the three triangles
-    // it forms with an edge of (a, b, c), taken on the far side.
-    const double add = std::max({(pos[a] - pos[i]).cross(pos[b] - pos[i]).squaredNorm(),
-                                 (pos[b] - pos[i]).cross(pos[c] - pos[i]).squaredNorm(),
-                                 (pos[c] - pos[i]).cross(pos[a] - pos[i]).squaredNorm()});
-    if (add > best) best = add, d = i;
+    for (int e = 0; e < 3; ++e) {
+      const Vec3& p = pos[corner[e]];
+      const Vec3& q = pos[corner[(e + 1) % 3]];
+      const double beyond = -(q - p).cross(pos[i] - p).dot(normal);
+      if (beyond > best) best = beyond, d = i;
+    }
   }
   keep[0] = a;
   keep[1] = b;
   keep[2] = c;
+  if (d < 0) return 3;  // every other point lies within the triangle
   keep[3] = d;
   return 4;
 }
@@ -66,12 +112,28 @@ constexpr double kReferenceCos = 0.9;
 // corner per side plane.
 constexpr int kMaxClipped = 2 * kMaxFeaturePoints;
 
+// A clipped point and the two lines it lies on, which name it: an
+// incident vertex lies on the incident edges before and after it, a point
+// made by clipping on an incident edge (or, where two side planes cut one
+// after the other, a side line) and the side plane that cut it.
+struct ClipPoint {
+  Vec3 position;
+  std::uint8_t line[2];
+};
+
+// Line labels: incident edge k (from vertex k to k + 1) is k; side plane
+// s is kSideLine + s; a segment's two ends are kSegmentEnd and + 1.
+constexpr std::uint8_t kSideLine = kMaxFeaturePoints;
+constexpr std::uint8_t kSegmentEnd = 2 * kMaxFeaturePoints;
+static_assert(2 * kMaxFeaturePoints + 2 <= 256, "line labels fit a byte");
+
 // Keeps the part of an incident polygon (or segment, count 2) on the inner
 // side of each side plane (normal, offset: inside where normal.x >= offset).
 int clipToSides(const Vec3* incident, int count, const Vec3* sideNormal, const double* sideOffset,
-                int sides, Vec3* out) {
+                int sides, ClipPoint* out) {
   if (count == 2) {  // a segment: clip its parameter range
     double t0 = 0.0, t1 = 1.0;
+    std::uint8_t cut0 = kSegmentEnd, cut1 = kSegmentEnd + 1;
     const Vec3 d = incident[1] - incident[0];
     for (int k = 0; k < sides; ++k) {
       const double start = sideNormal[k].dot(incident[0]) - sideOffset[k];
@@ -81,31 +143,39 @@ int clipToSides(const Vec3* incident, int count, const Vec3* sideNormal, const d
         continue;
       }
       const double t = -start / rate;
-      if (rate > 0.0)
-        t0 = std::max(t0, t);
-      else
-        t1 = std::min(t1, t);
+      const auto side = static_cast<std::uint8_t>(kSideLine + k);
+      if (rate > 0.0 && t > t0) t0 = t, cut0 = side;
+      if (rate < 0.0 && t < t1) t1 = t, cut1 = side;
     }
     if (t0 > t1) return 0;
-    out[0] = incident[0] + t0 * d;
-    out[1] = incident[0] + t1 * d;
+    out[0] = {incident[0] + t0 * d, {0, cut0}};
+    out[1] = {incident[0] + t1 * d, {0, cut1}};
     return t1 - t0 > 1e-12 ? 2 : 1;
   }
-  Vec3 bufferA[kMaxClipped], bufferB[kMaxClipped];
-  Vec3* polygon = bufferA;
-  Vec3* next = bufferB;
-  for (int i = 0; i < count; ++i)
-    polygon[i] = incident[i];
+  ClipPoint bufferA[kMaxClipped], bufferB[kMaxClipped];
+  ClipPoint* polygon = bufferA;
+  ClipPoint* next = bufferB;
+  for (int i = 0; i < count; ++i) {
+    polygon[i] = {
+        incident[i],
+        {static_cast<std::uint8_t>((i + count - 1) % count), static_cast<std::uint8_t>(i)}};
+  }
   for (int k = 0; k < sides && count > 0; ++k) {
+    const auto side = static_cast<std::uint8_t>(kSideLine + k);
     int n = 0;
     for (int i = 0; i < count; ++i) {
-      const Vec3& p = polygon[i];
-      const Vec3& q = polygon[(i + 1) % count];
-      const double dp = sideNormal[k].dot(p) - sideOffset[k];
-      const double dq = sideNormal[k].dot(q) - sideOffset[k];
+      const ClipPoint& p = polygon[i];
+      const ClipPoint& q = polygon[(i + 1) % count];
+      // The line from p to q: the one the two points share.
+      const std::uint8_t edge =
+          p.line[0] == q.line[0] || p.line[0] == q.line[1] ? p.line[0] : p.line[1];
+      const double dp = sideNormal[k].dot(p.position) - sideOffset[k];
+      const double dq = sideNormal[k].dot(q.position) - sideOffset[k];
       const bool pIn = dp >= 0.0, qIn = dq >= 0.0;
       if (pIn && n < kMaxClipped) next[n++] = p;
-      if (pIn != qIn && n < kMaxClipped) next[n++] = p + (q - p) * (dp / (dp - dq));
+      if (pIn != qIn && n < kMaxClipped) {
+        next[n++] = {p.position + (q.position - p.position) * (dp / (dp - dq)), {edge, side}};
+      }
     }
     std::swap(polygon, next);
     count = n;
@@ -115,13 +185,23 @@ int clipToSides(const Vec3* incident, int count, const Vec3* sideNormal, const d
   return count;
 }
 
+// A clipped point's id: the reference and incident features and the two
+// lines it lies on.
+std::uint32_t clippedPointId(bool refIsA, std::uint32_t ref, std::uint32_t inc,
+                             const std::uint8_t line[2]) {
+  const std::uint32_t lo = std::min(line[0], line[1]), hi = std::max(line[0], line[1]);
+  const std::uint64_t features = mixedFeatureId(std::uint64_t{ref} << 32 | inc);
+  return mixedFeatureId(features << 32 | (refIsA ? 1u << 16 : 0u) | lo << 8 | hi);
+}
+
 }  // namespace
 
-int addReducedPoints(ContactManifold& m, const Vec3* pos, const double* sep, int n) {
+int addReducedPoints(ContactManifold& m, const Vec3* pos, const double* sep,
+                     const std::uint32_t* ids, int n) {
   int keep[4];
   const int k = reduceToFour(pos, sep, n, keep);
   for (int i = 0; i < k; ++i)
-    addManifoldPoint(m, pos[keep[i]], sep[keep[i]], 0);
+    addManifoldPoint(m, pos[keep[i]], sep[keep[i]], ids[keep[i]]);
   return k;
 }
 
@@ -165,21 +245,24 @@ int clipFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n, doub
   }
   if (ref.count == 2 && inc.count > 2) return onePoint();  // an edge on a face: the face clips
 
-  Vec3 clipped[kMaxClipped];
+  ClipPoint clipped[kMaxClipped];
   const int count = clipToSides(inc.points, inc.count, sideNormal, sideOffset, sides, clipped);
   const double rate = outward.dot(planeNormal);
   Vec3 pos[kMaxClipped];
   double sep[kMaxClipped];
+  std::uint32_t ids[kMaxClipped];
   int kept = 0;
   for (int i = 0; i < count; ++i) {
+    const Vec3& p = clipped[i].position;
     // Along the normal from the incident point to the reference's plane.
-    const double s = (clipped[i] - ref.points[0]).dot(planeNormal) / rate;
+    const double s = (p - ref.points[0]).dot(planeNormal) / rate;
     if (s > margin) continue;
-    pos[kept] = refIsA ? Vec3(clipped[i] - s * n) : clipped[i];  // on A's surface
-    sep[kept++] = s;
+    pos[kept] = refIsA ? Vec3(p - s * n) : p;  // on A's surface
+    sep[kept] = s;
+    ids[kept++] = clippedPointId(refIsA, ref.id, inc.id, clipped[i].line);
   }
   if (kept == 0) return onePoint();
-  return addReducedPoints(m, pos, sep, kept);
+  return addReducedPoints(m, pos, sep, ids, kept);
 }
 
 }  // namespace blockstep

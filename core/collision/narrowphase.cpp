@@ -162,79 +162,13 @@ int collideBoxes(const Shape& a, const ShapePose& pa, const Shape& b, const Shap
     return 1;
   }
 
-  // Face contact: reference face on the box that owns the axis.
+  // Face contact: the reference face is the one owning the axis, the
+  // incident face the other box's most against it, and the manifold is
+  // clipped as for every convex pair.
   const bool refIsA = faceAxis < 3;
-  const int refAxis = refIsA ? faceAxis : faceAxis - 3;
-  const Mat3& RR = refIsA ? RA : RB;
-  const Mat3& RI = refIsA ? RB : RA;
-  const Vec3& eR = refIsA ? eA : eB;
-  const Vec3& eI = refIsA ? eB : eA;
-  const Vec3 cR = refIsA ? pa.position : pb.position;
-  const Vec3 cI = refIsA ? pb.position : pa.position;
-  Vec3 nRef = RR.col(refAxis);
-  if (nRef.dot(cI - cR) < 0.0) nRef = -nRef;  // toward the incident box
-
-  // Incident face: the face of the other box most against nRef.
-  int incAxis = 0;
-  double most = -1.0;
-  for (int k = 0; k < 3; ++k) {
-    const double dot = std::abs(RI.col(k).dot(nRef));
-    if (dot > most) most = dot, incAxis = k;
-  }
-  const Vec3 incNormal = RI.col(incAxis) * (RI.col(incAxis).dot(nRef) > 0.0 ? -1.0 : 1.0);
-  const int i1 = (incAxis + 1) % 3, i2 = (incAxis + 2) % 3;
-  const Vec3 incCentre = cI + eI[incAxis] * incNormal;
-  const Vec3 s1 = eI[i1] * RI.col(i1), s2 = eI[i2] * RI.col(i2);
-
-  Vec3 polygon[8] = {incCentre + s1 + s2, incCentre - s1 + s2, incCentre - s1 - s2,
-                     incCentre + s1 - s2};
-  int count = 4;
-  // Clip against the reference face's four side planes
-  // (Sutherland-Hodgman): keep |(p - cR).side| <= extent.
-  const int r1 = (refAxis + 1) % 3, r2 = (refAxis + 2) % 3;
-  for (int plane = 0; plane < 4 && count > 0; ++plane) {
-    const int axis = plane < 2 ? r1 : r2;
-    const Vec3 side = RR.col(axis) * (plane % 2 == 0 ? 1.0 : -1.0);
-    const double limit = eR[axis] + side.dot(cR);
-    Vec3 out[8];
-    int outCount = 0;
-    for (int k = 0; k < count; ++k) {
-      const Vec3& p = polygon[k];
-      const Vec3& q = polygon[(k + 1) % count];
-      const double dp = side.dot(p) - limit, dq = side.dot(q) - limit;
-      // One predicate for inside, so a convex polygon gains at most one
-      // vertex per plane (4 + 4 = 8).
-      const bool pIn = dp <= 0.0, qIn = dq <= 0.0;
-      if (pIn && outCount < 8) out[outCount++] = p;
-      if (pIn != qIn && outCount < 8) out[outCount++] = p + (q - p) * (dp / (dp - dq));
-    }
-    count = outCount;
-    for (int k = 0; k < count; ++k)
-      polygon[k] = out[k];
-  }
-
-  const Vec3 refFace = cR + eR[refAxis] * nRef;
-  Vec3 pos[8];
-  double sep[8];
-  int n = 0;
-  for (int k = 0; k < count; ++k) {
-    const double s = (polygon[k] - refFace).dot(nRef);
-    if (s > margin) continue;
-    pos[n] = polygon[k] - s * nRef;  // on the reference face
-    sep[n] = s;
-    ++n;
-  }
-  int keep[4];
-  const int kept = reduceToFour(pos, sep, n, keep);
-  // The manifold's normal points from A to B; points sit on A's surface.
-  m.normal = refIsA ? nRef : Vec3(-nRef);
-  for (int k = 0; k < kept; ++k) {
-    const Vec3 onA = refIsA ? pos[keep[k]] : Vec3(pos[keep[k]] + sep[keep[k]] * nRef);
-    // Features are left 0: clipped points are matched across steps by
-    // position.
-    addManifoldPoint(m, onA, sep[keep[k]], 0);
-  }
-  return kept;
+  const Vec3 axis = refIsA ? RA.col(faceAxis) : RB.col(faceAxis - 3);
+  const Vec3 n = axis.dot(d) >= 0.0 ? axis : Vec3(-axis);  // from A toward B
+  return clipFeatures(PosedConvex(a, pa), PosedConvex(b, pb), n, margin, m);
 }
 
 int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,
@@ -288,22 +222,45 @@ int collideConvexPlane(const Shape& plane, const Shape& shape, const ShapePose& 
   const Vec3 deepest = c.coreSupport(-n) - c.radius * n;
   const double deepestSeparation = n.dot(deepest) - plane.planeOffset;
   if (deepestSeparation > margin) return 0;
-  Feature feature;
-  supportingFeature(c, -n, feature);
   Vec3 pos[kMaxFeaturePoints];
   double sep[kMaxFeaturePoints];
+  std::uint32_t ids[kMaxFeaturePoints];
   int count = 0;
-  for (int i = 0; i < feature.count; ++i) {
-    const double s = n.dot(feature.points[i]) - plane.planeOffset;
-    if (s > margin) continue;
-    pos[count] = feature.points[i] - s * n;  // on the plane
-    sep[count++] = s;
+  // A candidate on the plane; past the buffer's size the shallowest goes.
+  auto candidate = [&](const Vec3& p, std::uint32_t id) {
+    const double s = n.dot(p) - plane.planeOffset;
+    if (s > margin) return;
+    int slot = count;
+    if (count == kMaxFeaturePoints) {
+      slot = static_cast<int>(std::max_element(sep, sep + count) - sep);
+      if (sep[slot] <= s) return;
+    } else {
+      ++count;
+    }
+    pos[slot] = p - s * n;
+    sep[slot] = s;
+    ids[slot] = id;
+  };
+  if (shape.kind == Shape::Kind::Convex) {
+    // Every vertex within the margin, as a box's corners: a hull resting
+    // on three vertices with no face flat on the plane has no supporting
+    // face, and its support vertex alone let it rock from one vertex to
+    // another each step, 14 mm deep (a pile of hulls never came to rest).
+    const std::vector<Vec3>& vertices = shape.hull->vertices();
+    for (std::size_t v = 0; v < vertices.size(); ++v)
+      candidate(ps.position + ps.rotation * vertices[v],
+                mixedFeatureId(std::uint64_t{1} << 40 | v));
+  } else {
+    Feature feature;
+    supportingFeature(c, -n, feature);
+    for (int i = 0; i < feature.count; ++i)
+      candidate(feature.points[i], mixedFeatureId(std::uint64_t{feature.id} << 8 | i));
   }
   if (count == 0) {
     addManifoldPoint(m, deepest - deepestSeparation * n, deepestSeparation, 0);
     return 1;
   }
-  return addReducedPoints(m, pos, sep, count);
+  return addReducedPoints(m, pos, sep, ids, count);
 }
 
 }  // namespace blockstep

@@ -32,8 +32,8 @@ int collideBoxes(const Shape& a, const ShapePose& pa, const Shape& b, const Shap
 int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,
                   double margin, ContactManifold& m);
 // Any convex shape against a plane: its support point below the plane,
-// and the points of its feature facing the plane that lie within the
-// margin.
+// and the points of its feature facing the plane (a hull: all its
+// vertices) that lie within the margin.
 int collideConvexPlane(const Shape& plane, const Shape& shape, const ShapePose& ps, double margin,
                        ContactManifold& m);
 

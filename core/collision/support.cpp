@@ -25,6 +25,9 @@ Vec3 across(const Vec3& axis, const Vec3& direction) {
 // contact normal's perpendicular plane when its whole side touches.
 constexpr double kSideTouchCos = 0.2;
 
+// Feature ids: the kind in the top byte, an index below it.
+enum FeatureKind : std::uint32_t { kFace = 1u << 24, kEdge = 2u << 24, kVertex = 3u << 24 };
+
 }  // namespace
 
 PosedConvex::PosedConvex(const Shape& s, const ShapePose& p) : shape(&s), pose(p) {
@@ -90,6 +93,7 @@ void supportingFeature(const PosedConvex& c, const Vec3& direction, Feature& out
   switch (s.kind) {
     case Shape::Kind::Sphere:
       out.points[out.count++] = centre + s.radius * direction;
+      out.id = kVertex;
       return;
     case Shape::Kind::Capsule: {
       // Along the side: the support end, and the other end's point on the
@@ -98,9 +102,12 @@ void supportingFeature(const PosedConvex& c, const Vec3& direction, Feature& out
       const double along = axis.dot(direction);
       const Vec3 tip = centre + (along >= 0.0 ? 1.0 : -1.0) * s.halfLength * axis;
       out.points[out.count++] = tip + s.radius * direction;
+      const std::uint32_t end = along >= 0.0 ? 0 : 1;
+      out.id = kVertex | end;
       if (std::abs(along) < kSideTouchCos && s.halfLength > 0.0) {
         const Vec3 other = 2.0 * centre - tip;
         out.points[out.count++] = other + s.radius * across(axis, direction);
+        out.id = kEdge | end;  // the side line, from that end
       }
       return;
     }
@@ -118,10 +125,14 @@ void supportingFeature(const PosedConvex& c, const Vec3& direction, Feature& out
               capCentre + s.radius * (std::cos(angle) * u + std::sin(angle) * v);
         }
         out.normal = capNormal;
+        // The corners start from the rim's support point: corner k keeps
+        // its place relative to the contact while the normal holds still.
+        out.id = kFace | (along >= 0.0 ? 0 : 1);
       } else {  // the side line, support end first
         const double sign = along >= 0.0 ? 1.0 : -1.0;
         out.points[out.count++] = centre + sign * s.halfLength * axis + s.radius * u;
         out.points[out.count++] = centre - sign * s.halfLength * axis + s.radius * u;
+        out.id = kEdge | (along >= 0.0 ? 0 : 1);
       }
       return;
     }
@@ -140,13 +151,16 @@ void supportingFeature(const PosedConvex& c, const Vec3& direction, Feature& out
       for (int k = 0; k < 4; ++k)
         out.points[out.count++] = faceCentre + (sign > 0 ? corners[k] : corners[3 - k]);
       out.normal = sign * R.col(axis);
+      out.id = kFace | static_cast<std::uint32_t>(2 * axis + (sign > 0 ? 1 : 0));
       return;
     }
     case Shape::Kind::Convex: {
       const ConvexHull& hull = *s.hull;
       const Vec3 d = R.transpose() * direction;
-      const ConvexHull::Face& f = hull.faces()[hull.supportFace(d)];
-      const Vec3& tip = hull.vertices()[hull.supportVertex(d)];
+      const int face = hull.supportFace(d);
+      const int vertex = hull.supportVertex(d);
+      const ConvexHull::Face& f = hull.faces()[face];
+      const Vec3& tip = hull.vertices()[vertex];
       double faceMost = -kInf;
       for (int k = 0; k < f.count; ++k)
         faceMost = std::max(faceMost, hull.faceVertex(f, k).dot(d));
@@ -154,11 +168,13 @@ void supportingFeature(const PosedConvex& c, const Vec3& direction, Feature& out
       // large for the buffer touches at that point alone.
       if (f.count > kMaxFeaturePoints || faceMost < tip.dot(d) - 1e-9 * hull.boundingRadius()) {
         out.points[out.count++] = centre + R * tip;
+        out.id = kVertex | static_cast<std::uint32_t>(vertex);
         return;
       }
       for (int k = 0; k < f.count; ++k)
         out.points[out.count++] = centre + R * hull.faceVertex(f, k);
       out.normal = R * f.normal;
+      out.id = kFace | static_cast<std::uint32_t>(face);
       return;
     }
     case Shape::Kind::Plane:

@@ -6,6 +6,8 @@
 // point that touches along a normal) is what the contact manifold clips.
 #pragma once
 
+#include <cstdint>
+
 #include "core/collision/shapes.h"
 
 namespace blockstep {
@@ -31,11 +33,15 @@ struct PosedConvex {
 // (two points) or one point, on the shape's surface (radius included).
 // A face comes with its outward normal; an edge or a point with a zero
 // normal. Whatever the feature, it holds the shape's support point
-// along `direction`, so one point of it is exact.
+// along `direction`, so one point of it is exact. `id` names the feature
+// on its shape (which face, edge or vertex, and the order of its points),
+// so that contact points clipped from it can be told apart and followed
+// from step to step (warm starting).
 struct Feature {
   Vec3 points[kMaxFeaturePoints];
   int count = 0;
   Vec3 normal = Vec3::Zero();
+  std::uint32_t id = 0;
 };
 void supportingFeature(const PosedConvex& c, const Vec3& direction, Feature& out);
 

@@ -95,6 +95,9 @@ struct ConstraintBlock {
   std::int32_t contact = -1;  // the contact manifold it came from, or -1
   // Contact normals: the block's rows are one-sided (impulses >= 0).
   bool unilateral = false;
+  // Some equality row depends on the others (a zero pivot in ldl): the
+  // block's solution leaves that row's residual to them.
+  bool redundant = false;
   // LDL^T of the equality block: unit lower L below the diagonal,
   // 1/D on the diagonal (0 where the pivot vanished: a redundant row).
   Eigen::Matrix<double, 6, 6> ldl = Eigen::Matrix<double, 6, 6>::Zero();

@@ -713,6 +713,9 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
   }
   if (blk.springShare > 0.0) blk.ldl *= 1.0 + blk.springShare;  // K + c K (gamma is 0)
   ldltFactor(blk.ldl, ne);
+  blk.redundant = false;
+  for (int r = 0; r < ne; ++r)
+    blk.redundant = blk.redundant || blk.ldl(r, r) == 0.0;
   if (s.blockMode == BlockMode::Block && !blk.unilateral) coupleBoundedRows(blk);
 }
 
@@ -854,6 +857,19 @@ void Solver::solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& 
   }
   addVelocity(a, a.invMass * dvA, dwA);
   addVelocity(b, b.invMass * dvB, dwB);
+  if (blk.unilateral && blk.redundant) {
+    // A point whose row depends on the others (four points of one body on
+    // a plane: K has rank 3) was left to them, which holds only while the
+    // points' targets agree (a face's corners at one depth). They do not
+    // when one point is deeper than the others' plane (a hull's vertices
+    // within the margin of the ground): a hull rested 24 mm deep on its
+    // deepest vertex, whose push-out the factor left out.
+    for (int i = 0; i < ne; ++i) {
+      const double r = rowResidual(eq[i], useBias, a, b);
+      if (r < -kUnmetResidual || (r > kUnmetResidual && eq[i].impulse > 0.0))
+        return projectedContactSweeps(blk, useBias, a, b);
+    }
+  }
 }
 
 // The normal block when some point would pull: a few projected

@@ -88,6 +88,9 @@ class Solver {
   double penetrationRate(const ConstraintRow& row, const ConstraintBlock& blk, double h) const;
   // Depth past which fresh contacts push out faster (penetrationRate), m.
   static constexpr double kDeepPenetration = 0.002;
+  // A contact row's residual (m/s) its block solution may leave: far
+  // below anything a step moves, far above the factor's rounding.
+  static constexpr double kUnmetResidual = 1e-3;
   double blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
                           bool inIslandBlock) const;
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk, bool inIslandBlock,

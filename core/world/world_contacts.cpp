@@ -179,15 +179,15 @@ void World::collide(double h) {
 
 // Tangents, body-fixed anchors, and the impulses of the matching points of
 // the last step (ODE makes its contacts anew every step: this matching is
-// what lets them warm start). Each old point hands its impulse to the
-// nearest new point of the same pair (same feature id, when the caller
-// gives them), and a new point sums what it was handed: a pair's total
-// impulse carries over whether the collider gives a point once or several
-// times. When each new point took its nearest old point's impulse
-// instead, copies multiplied it: ODE's trimesh pairs give points several
-// times, and a resting body's friction impulses grew to 0.86 N s against
-// 0.003 N s of weight per step until a change of the set threw it
-// (demo_moving_trimesh).
+// what lets them warm start). Each old point hands its impulse to the new
+// point of the same pair with its feature id or, when none has it (no
+// ids, or the touching features changed), to the nearest; a new point
+// sums what it was handed: a pair's total impulse carries over whether
+// the collider gives a point once or several times. When each new point
+// took its nearest old point's impulse instead, copies multiplied it:
+// ODE's trimesh pairs give points several times, and a resting body's
+// friction impulses grew to 0.86 N s against 0.003 N s of weight per step
+// until a change of the set threw it (demo_moving_trimesh).
 namespace {
 
 // Friction directions across a normal: the surface's first direction
@@ -250,20 +250,20 @@ void World::prepareContacts() {
       const ContactPoint& q = old.points[k];
       ContactManifold* target = nullptr;
       ContactPoint* match = nullptr;
+      // The point of the same feature id; failing that (no ids, or the
+      // features changed), the nearest point.
+      bool sameFeature = false;
       double best = matchDistance_ * matchDistance_;
-      for (std::size_t n = next; n < end && !(match && q.feature != 0); ++n) {
+      for (std::size_t n = next; n < end && !sameFeature; ++n) {
         ContactManifold& m = contacts_[contactOrder_[n]];
         // The pair may be named the other way round; the normals must agree.
         const double sign = old.bodyA == m.bodyA ? 1.0 : -1.0;
         for (int i = 0; i < m.pointCount; ++i) {
           ContactPoint& p = m.points[i];
           if (sign * q.normal.dot(p.normal) < 0.95) continue;
-          if (q.feature != 0 || p.feature != 0) {
-            if (p.feature == q.feature) {
-              target = &m, match = &p;
-              break;
-            }
-            continue;
+          if (q.feature != 0 && p.feature == q.feature) {
+            target = &m, match = &p, sameFeature = true;
+            break;
           }
           const double d2 = (q.position - p.position).squaredNorm();
           if (d2 <= best) best = d2, target = &m, match = &p;

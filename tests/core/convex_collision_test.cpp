@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
+#include <vector>
 
 #include "core/collision/gjk_epa.h"
 #include "core/collision/narrowphase.h"
@@ -102,6 +104,82 @@ TEST(ConvexCollision, BoxOnBoxFaceGivesFourPointsLikeTheSeparatingAxisPath) {
   collideConvex(lower, pl, upper, at(Vec3(0.1, 0.2, 0.755), turn), kMargin, gjk);
   expectContact(gjk, 4, 0.005, Vec3::UnitZ());
   EXPECT_NEAR(gjk.points[3].separation, 0.005, 1e-12);
+}
+
+// The area of the manifold's points as a polygon (on a plane z = const).
+double supportArea(const ContactManifold& m) {
+  std::vector<Vec3> p;
+  for (int i = 0; i < m.pointCount; ++i)
+    p.push_back(m.points[i].position);
+  const Vec3 c = std::accumulate(p.begin(), p.end(), Vec3(Vec3::Zero())) / p.size();
+  std::sort(p.begin(), p.end(), [&](const Vec3& a, const Vec3& b) {
+    return std::atan2(a.y() - c.y(), a.x() - c.x()) < std::atan2(b.y() - c.y(), b.x() - c.x());
+  });
+  double area = 0.0;
+  for (std::size_t i = 0; i < p.size(); ++i)
+    area += 0.5 * (p[i] - c).cross(p[(i + 1) % p.size()] - c).z();
+  return area;
+}
+
+TEST(ConvexCollision, ABoxOnABoxOfItsSizeTurnedAHairRestsOnItsFourCorners) {
+  // Turned 1e-7 rad, the upper box's bottom edges cross the lower box's
+  // top edges at points anywhere along them, and clipping keeps those
+  // beside the corners: the four kept must span the whole face (0.25 m^2),
+  // not three corners and a point along an edge.
+  const Shape box = Shape::box(0, Vec3(0.25, 0.25, 0.25));
+  for (double turn : {1e-7, -3e-7, 2e-6}) {
+    const ShapePose lower = at(Vec3::Zero());
+    const ShapePose upper = at(Vec3(2e-8, -1e-8, 0.4999), about(Vec3::UnitZ(), turn));
+    ContactManifold sat, gjk;
+    collideBoxes(box, lower, box, upper, kMargin, sat);
+    collideConvex(box, lower, box, upper, kMargin, gjk);
+    for (const ContactManifold* m : {&sat, &gjk}) {
+      ASSERT_EQ(m->pointCount, 4);
+      EXPECT_GT(supportArea(*m), 0.999 * 0.25) << "turned " << turn;
+    }
+  }
+}
+
+TEST(ConvexCollision, ClippedPointsKeepTheirFeatureIdsWhileTheBoxSlides) {
+  // A box sliding across a larger one, and a hull box on a hull: each
+  // corner's point keeps its id from one position to the next (warm
+  // starting follows the corner, however far it moved), the ids of one
+  // manifold differ, and a corner that leaves the face takes its id away.
+  const Shape lower = Shape::box(0, Vec3(1, 1, 0.5)), upper = Shape::box(1, Vec3(0.3, 0.2, 0.25));
+  const Shape hullLower = Shape::convex(0, boxHull(Vec3(1, 1, 0.5)));
+  const Shape hullUpper = Shape::convex(1, boxHull(Vec3(0.3, 0.2, 0.25)));
+  const Quat turn = about(Vec3::UnitZ(), 0.4);
+  for (int kind = 0; kind < 3; ++kind) {
+    auto collideAt = [&](double x, ContactManifold& m) {
+      const ShapePose pl = at(Vec3::Zero()), pu = at(Vec3(x, 0.2, 0.74), turn);
+      if (kind == 0) return collideBoxes(lower, pl, upper, pu, kMargin, m);
+      if (kind == 1) return collideConvex(lower, pl, upper, pu, kMargin, m);
+      return collideConvex(hullLower, pl, hullUpper, pu, kMargin, m);
+    };
+    ContactManifold before, after;
+    ASSERT_EQ(collideAt(0.0, before), 4);
+    ASSERT_EQ(collideAt(0.05, after), 4);  // 50 mm on: beyond position matching's 20 mm
+    for (int i = 0; i < 4; ++i) {
+      EXPECT_NE(before.points[i].feature, 0u);
+      for (int j = 0; j < i; ++j)
+        EXPECT_NE(before.points[i].feature, before.points[j].feature);
+      int same = -1;
+      for (int j = 0; j < 4; ++j)
+        if (after.points[j].feature == before.points[i].feature) same = j;
+      ASSERT_GE(same, 0) << "kind " << kind << ": point " << i << " lost its id";
+      EXPECT_LT((after.points[same].position - before.points[i].position - Vec3(0.05, 0, 0)).norm(),
+                1e-9);
+    }
+    // Past the lower box's edge at x = 1 the corners there are cut: the
+    // points on the edge are new features.
+    ContactManifold over;
+    ASSERT_EQ(collideAt(0.8, over), 4);
+    int kept = 0;
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j)
+        kept += over.points[i].feature == before.points[j].feature;
+    EXPECT_LT(kept, 4) << "kind " << kind;
+  }
 }
 
 TEST(ConvexCollision, CrossedBoxEdgesGiveOnePointAtTheClosedFormDepth) {
