@@ -191,6 +191,10 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_ISLAND_BLOCK_ROWS", v, 0, n)) {
     s.islandBlockRows = n;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_CHAIN_BLOCKS");
+      v && parseInt("BLOCKSTEP_CHAIN_BLOCKS", v, 0, n, 1)) {
+    s.chainBlocks = n != 0;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_MAX_TURN");
       v && parseReal("BLOCKSTEP_MAX_TURN", v, x)) {
     if (x >= 0.0 && std::isfinite(x))
@@ -522,6 +526,15 @@ int dWorldGetBlockIslandBlockRows(dWorldID w) {
   return guarded(__func__, 0, [&] {
     const std::optional<int> rows = LockedWorld(w).settings().islandBlockRows;
     return rows ? *rows : currentSettings(w).islandBlockRows;
+  });
+}
+void dWorldSetBlockChainBlocks(dWorldID w, int on) {
+  guarded(__func__, [&] { LockedWorld(w).settings().chainBlocks = on != 0; });
+}
+int dWorldGetBlockChainBlocks(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    const std::optional<bool> on = LockedWorld(w).settings().chainBlocks;
+    return (on ? *on : currentSettings(w).chainBlocks) ? 1 : 0;
   });
 }
 void dWorldSetBlockMaxTurn(dWorldID w, dReal radians) {

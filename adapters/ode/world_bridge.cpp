@@ -95,6 +95,7 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   }
   // Set apart from the solver: they hold whichever solver the step uses.
   if (settings_.islandBlockRows) s.islandBlockRows = *settings_.islandBlockRows;
+  if (settings_.chainBlocks) s.chainBlocks = *settings_.chainBlocks;
   if (settings_.maxTurnPerSubstep) s.maxTurnPerSubstep = *settings_.maxTurnPerSubstep;
   if (settings_.relaxCancelsDrift) s.relaxCancelsDrift = *settings_.relaxCancelsDrift;
   if (settings_.threads) s.threads = *settings_.threads;

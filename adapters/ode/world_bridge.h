@@ -55,6 +55,9 @@ struct BridgeSettings {
   // this many rows (unset: the solver's own choice), and the runaway
   // guard's limits (SolverSettings::runawayEnergyGain, runawaySpeed).
   std::optional<int> islandBlockRows;
+  // Islands larger than that cut into chains (SolverSettings::chainBlocks;
+  // unset: the solver's own).
+  std::optional<bool> chainBlocks;
   // The turn per sub-step above which a step runs more sub-steps
   // (SolverSettings::maxTurnPerSubstep; unset: the solver's own).
   std::optional<double> maxTurnPerSubstep;

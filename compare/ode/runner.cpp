@@ -80,6 +80,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.warm) dWorldSetBlockWarmStarting(w, *o.warm ? 1 : 0);
   if (o.rowByRow) dWorldSetBlockMode(w, *o.rowByRow ? dBlockModeRowByRow : dBlockModeBlock);
   if (o.islandRows) dWorldSetBlockIslandBlockRows(w, *o.islandRows);
+  if (o.chains) dWorldSetBlockChainBlocks(w, *o.chains ? 1 : 0);
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
   if (o.relaxDrift) dWorldSetBlockRelaxDrift(w, *o.relaxDrift ? 1 : 0);
   if (o.threads) dWorldSetBlockThreads(w, *o.threads);
@@ -295,6 +296,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.rowByRow = value == "row";
   } else if (key == "island_rows") {
     o.islandRows = whole(text, key, value, 0, 1000000);
+  } else if (key == "chains") {
+    o.chains = flag(text, key, value);
   } else if (key == "max_turn") {
     o.maxTurn = decimal(text, key, value, 0.0, 10.0);
   } else if (key == "threads") {
@@ -330,6 +333,7 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"warm", "blockstep: warm starting, 0 or 1"},
           {"mode", "blockstep: block (one block per joint) or row (row by row)"},
           {"island_rows", "blockstep: island blocks up to this many joint rows, 0: off"},
+          {"chains", "blockstep: larger islands cut into chains of that many rows, 0 or 1"},
           {"max_turn", "blockstep: more sub-steps past this turn per sub-step, rad, 0: off"},
           {"relax_drift", "blockstep: relax closes the joints' linearization drift, 0 or 1"},
           {"threads", "blockstep: threads sweeping independent islands, 0: one per core"},

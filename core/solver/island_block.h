@@ -11,12 +11,22 @@
 // one sweep whatever the mass ratios; limits, motors and contacts stay
 // bounded rows around it, as in the per-joint blocks.
 //
+// An island with more rows than that (a cloth, a lattice) is cut into
+// chains instead: paths of joints, body to body, each as straight as the
+// bodies lie and of at most maxRows rows, and each chain is one block
+// inside the Gauss-Seidel sweep. A chain's K is block tridiagonal, so its
+// factor costs a few times a joint's; in return a pull travels the whole
+// chain in one sweep where per-joint blocks pass it one joint a sweep
+// (Baraff 1996 solves a tree's rows exactly the same way). A grid's
+// joints fall into its rows and columns: alternating line relaxation.
+//
 // K is sparse: two rows couple only when their joints share a body. The
 // joints are ordered breadth-first over the bodies they share (the
 // Cuthill-McKee ordering), which keeps each row's non-zeros close to the
-// diagonal, and the factor is computed within that profile (the envelope
-// of K, where LDL^T creates no fill): a chain or a ragdoll costs time
-// linear in its length, a star of n joints on one body n^2 (it is dense).
+// diagonal, and the factor is computed and stored within that profile
+// (the envelope of K, where LDL^T creates no fill): a chain or a ragdoll
+// costs time and memory linear in its length, a star of n joints on one
+// body n^2 (it is dense).
 //
 // The joints' bounded rows (limits, motors) stay rows clamped one at a
 // time, but each in the null space of the whole island's equality rows:
@@ -32,7 +42,8 @@
 // coupling: its contacts are Gauss-Seidel partners outside the island's
 // null space, and island-wide limit impulses moved the bodies they hold
 // (a ragdoll lying on the ground settled 4-7x deeper, 4-8 mm against
-// 1-2 mm, at 9-11 sub-steps).
+// 1-2 mm, at 9-11 sub-steps). So do the joints of an island cut into
+// chains.
 // The price is paid once per sub-step, where each bounded row's w takes
 // one solve with the island's factor: the bridge of 17 motors on 85
 // equality rows steps 3x slower (perf: those solves 33%, forming w and
@@ -51,34 +62,44 @@ namespace blockstep {
 
 class IslandBlocks {
  public:
-  // Chooses this (sub-)step's island blocks once the joint blocks' rows
-  // are written: every island whose joints have 2..maxRows equality rows
-  // in all gets one, its rows ordered. Island i owns blocks
-  // [islandStart[i], islandStart[i+1]).
+  // Chooses this (sub-)step's blocks once the joint blocks' rows are
+  // written: every island whose joints have 2..maxRows equality rows in
+  // all gets one, its rows ordered; with cutIntoChains, a larger island is
+  // cut into chains of at most maxRows rows (positions: each solver body's
+  // position, to keep the chains straight; a body beyond its end has
+  // none). Island i owns blocks [islandStart[i], islandStart[i+1]).
   void select(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
-              const std::vector<std::int32_t>& islandStart, int islandCount, int maxRows);
-  // K of each chosen island and its LDL^T, once the rows are prepared
+              const std::vector<std::int32_t>& islandStart, int islandCount, int maxRows,
+              bool cutIntoChains = false, const std::vector<Vec3>* positions = nullptr);
+  // K of each chosen group and its LDL^T, once the rows are prepared
   // (Jacobians times M^-1, gamma).
   // Bounded rows with a mass-relative spring get their gamma here.
   void factorAll(const std::vector<ConstraintBlock>& blocks, std::vector<ConstraintRow>& rows,
                  const std::vector<SolverBody>& bodies);
-  // The same in parts, so islands can be factored at once: the storage
-  // first, then factorOne for each of the count() islands (any order, any
+  // The same in parts, so groups can be factored at once: the storage
+  // first, then factorOne for each of the count() groups (any order, any
   // thread: each writes only its own).
   void prepareFactors();
-  int count() const { return static_cast<int>(islands_.size()); }
+  int count() const { return static_cast<int>(groups_.size()); }
   void factorOne(int k, const std::vector<ConstraintBlock>& blocks,
                  std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
 
-  // Whether island i's joint equality rows are solved here (the sweep
-  // then skips the per-joint equality blocks of that island).
+  // Whether all of island i's joint equality rows are one block here.
   bool covers(int island) const {
-    return island < static_cast<int>(islandOf_.size()) && islandOf_[island] >= 0;
+    return island < static_cast<int>(wholeIsland_.size()) && wholeIsland_[island] >= 0;
   }
+  // Whether a joint block's equality rows are solved here, in its island's
+  // block or in one of its chains (the sweep then skips the joint's own).
+  bool solvesEquality(std::int32_t block) const {
+    return block < static_cast<std::int32_t>(groupOfBlock_.size()) && groupOfBlock_[block] >= 0;
+  }
+  // Island i's groups are [groupsBegin(i), groupsEnd(i)).
+  int groupsBegin(int island) const { return islandGroups_[island]; }
+  int groupsEnd(int island) const { return islandGroups_[island + 1]; }
 
   // Whether island i's joint bounded rows are solved here (solveBounded).
   bool solvesBounded(int island) const {
-    return covers(island) && islands_[islandOf_[island]].bounded;
+    return covers(island) && groups_[wholeIsland_[island]].bounded;
   }
 
   // The island's joint bounded rows, each clamped and solved in the null
@@ -86,42 +107,48 @@ class IslandBlocks {
   void solveBounded(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
                     std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies);
 
-  // One exact solve of the island's equality rows: dP = -K^-1 (J v + b +
+  // One exact solve of a group's equality rows: dP = -K^-1 (J v + b +
   // gamma P), applied to the bodies and accumulated in the rows.
-  void solve(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
+  void solve(int group, bool useBias, const std::vector<ConstraintBlock>& blocks,
              std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies);
 
-  // 1/2 d^T K^-1 d over island i's equality rows, d_r = speed(row r, its
-  // block's index) (the
-  // runaway guard's measure of the energy the rows' errors hold: the sum
-  // of the diagonals 1/2 d_r^2 / K_rr undercounts a taut chain's fivefold).
+  // 1/2 d^T K^-1 d over island i's equality rows (the island must be
+  // covered), d_r = speed(row r, its block's index) (the runaway guard's
+  // measure of the energy the rows' errors hold: the sum of the diagonals
+  // 1/2 d_r^2 / K_rr undercounts a taut chain's fivefold).
   template <class F>
   double inverseQuadratic(int island, const std::vector<ConstraintRow>& rows, F speed) {
-    const Island& isl = islands_[islandOf_[island]];
-    rhs_.resize(std::max<std::size_t>(rhs_.size(), static_cast<std::size_t>(isl.size)));
+    const Group& g = groups_[wholeIsland_[island]];
+    rhs_.resize(std::max<std::size_t>(rhs_.size(), static_cast<std::size_t>(g.size)));
     double* x = rhs_.data();
-    for (std::int32_t k = 0; k < isl.size; ++k)
-      x[k] = speed(rows[entryRow_[isl.firstEntry + k]], entryBlock_[isl.firstEntry + k]);
-    solveInPlace(isl, x);
+    for (std::int32_t k = 0; k < g.size; ++k)
+      x[k] = speed(rows[entryRow_[g.firstEntry + k]], entryBlock_[g.firstEntry + k]);
+    solveInPlace(g, x);
     double sum = 0.0;
-    for (std::int32_t k = 0; k < isl.size; ++k)
-      sum += speed(rows[entryRow_[isl.firstEntry + k]], entryBlock_[isl.firstEntry + k]) * x[k];
+    for (std::int32_t k = 0; k < g.size; ++k)
+      sum += speed(rows[entryRow_[g.firstEntry + k]], entryBlock_[g.firstEntry + k]) * x[k];
     return 0.5 * sum;
   }
 
   // Equality rows covered in all (statistics).
   int coveredRows() const { return static_cast<int>(entryRow_.size()); }
+  // Entries of the factors in all (statistics, tests: the profile's size).
+  std::size_t factorEntries() const { return factorSize_; }
 
  private:
-  struct Island {
-    std::int32_t firstEntry = 0;    // into entryRow_ / entryBlock_ / first_
+  // Rows solved as one block: a whole island's, or one chain's.
+  struct Group {
+    std::int32_t firstEntry = 0;    // into entryRow_, entryBlock_, first_, rowBase_
     std::int32_t size = 0;          // rows
-    std::size_t factor = 0;         // offset of its size x size factor in factor_
+    std::size_t factor = 0;         // offset of its profile's entries in factor_
     std::int32_t firstBounded = 0;  // into bounded_
     std::int32_t boundedCount = 0;
     bool bounded = false;        // its joints' bounded rows are solved here
     std::int32_t firstBody = 0;  // into islandBodies_: the bodies its joints move
     std::int32_t bodyCount = 0;
+    // c of its joints' common mass-relative spring (Solver::blockSpringShare):
+    // the factor is of (1 + c) K; 0: each row's own gamma.
+    double springShare = 0.0;
   };
   // A joint's bounded row in a covered island.
   struct BoundedRow {
@@ -134,26 +161,43 @@ class IslandBlocks {
     double effMass = 0.0;  // 1 / (Schur complement + gamma)
   };
 
-  void order(int island, const std::vector<ConstraintBlock>& blocks,
-             const std::vector<std::int32_t>& islandStart, std::int32_t staticBody);
-  void factor(const Island& isl, const std::vector<ConstraintBlock>& blocks,
-              const std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
-  // x = K^-1 x with the island's factor.
-  void solveInPlace(const Island& isl, double* x) const;
+  // The joint blocks of an island that have equality rows, into joints_.
+  void collectJoints(int island, const std::vector<ConstraintBlock>& blocks,
+                     const std::vector<std::int32_t>& islandStart);
+  // A whole island as one group (Cuthill-McKee order).
+  void addIsland(int island, int rows, const std::vector<ConstraintBlock>& blocks,
+                 const std::vector<std::int32_t>& islandStart, std::int32_t staticBody);
+  // A large island cut into chains, each a group.
+  void addChains(int maxRows, const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
+                 const std::vector<Vec3>* positions);
+  // Reverse Cuthill-McKee over joints_, into order_.
+  void orderByProfile(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody);
+  // A new group of the joints in order_ (indices into joints_), laid out
+  // in that order with each row's profile start.
+  Group& addGroup(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody);
+  void factor(Group& g, const std::vector<ConstraintBlock>& blocks,
+              std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
+  // x = K^-1 x with the group's factor.
+  void solveInPlace(const Group& g, double* x) const;
   // Each bounded row's w and effective mass, once the factor is made.
-  void coupleBounded(const Island& isl, const std::vector<ConstraintBlock>& blocks,
+  void coupleBounded(const Group& g, const std::vector<ConstraintBlock>& blocks,
                      std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
 
-  std::vector<std::int32_t> islandOf_;  // island -> index into islands_, or -1
-  std::vector<Island> islands_;
-  // Per covered row, in the island's elimination order:
+  std::vector<std::int32_t> wholeIsland_;   // island -> its whole-island group, or -1
+  std::vector<std::int32_t> islandGroups_;  // island i's groups from islandGroups_[i]
+  std::vector<std::int32_t> groupOfBlock_;  // block -> the group solving its equality rows, or -1
+  std::vector<Group> groups_;
+  // Per covered row, in the group's elimination order:
   std::vector<std::int32_t> entryRow_;    // index into the solver's rows
   std::vector<std::int32_t> entryBlock_;  // its block
-  std::vector<std::int32_t> first_;       // first column of its profile (island-local)
-  std::vector<double> factor_;            // L below the diagonal, 1/D on it (row-major)
-  std::vector<double> rhs_;               // the guard's scratch (one island at a time)
-  std::vector<double> solveScratch_;      // per covered row: solve()'s right side, by island
-  std::vector<double> factorScratch_;     // two per covered row: factor()'s D, 1/D, then u
+  std::vector<std::int32_t> first_;       // first column of its profile (group-local)
+  // Its profile's entries (columns first_ .. itself) are at rowBase_ +
+  // column in the group's part of factor_.
+  std::vector<std::size_t> rowBase_;
+  std::vector<double> factor_;         // L left of the diagonal, 1/D on it (row profiles)
+  std::vector<double> rhs_;            // the guard's scratch (one island at a time)
+  std::vector<double> solveScratch_;   // per covered row: solve()'s right side, by group
+  std::vector<double> factorScratch_;  // two per covered row: factor()'s D, 1/D, then u
   std::size_t factorSize_ = 0;
   std::vector<BoundedRow> bounded_;
   std::vector<double> weights_;
@@ -164,7 +208,10 @@ class IslandBlocks {
   std::size_t deltasSize_ = 0;
   std::vector<double> boundedStep_;  // each bounded row's impulse change in a sweep
   // Ordering scratch, reused.
-  std::vector<std::int32_t> orderedBlocks_, queue_, bodyFirst_, blockStart_;
+  std::vector<std::int32_t> joints_, order_, queue_, bodyFirst_, blockStart_;
+  // Chain scratch: each body's joints, the chain a body is in, the
+  // chain's part grown from its seed's first body.
+  std::vector<std::int32_t> incidenceStart_, incidenceCount_, incidence_, bodyMark_, chainFront_;
   std::vector<std::uint8_t> visited_;
 };
 

@@ -366,7 +366,8 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     // Islands and their joints stay the same over a step's sub-steps:
     // choose and order them once.
     if (!islandBlocksSelected_) {
-      islandBlocks_.select(blocks_, dummy_, islandStart_, islandCount_, s.islandBlockRows);
+      islandBlocks_.select(blocks_, dummy_, islandStart_, islandCount_, s.islandBlockRows,
+                           s.chainBlocks, &startX_);
       islandBlocksSelected_ = true;
     }
     if (s.rigidJointSoftness) {
@@ -381,7 +382,7 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
         if (!islandBlocks_.covers(island)) continue;
         for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
           ConstraintBlock& blk = blocks_[bi];
-          if (blk.unilateral) continue;
+          if (blk.unilateral || !islandBlocks_.solvesEquality(bi)) continue;
           for (int i = 0; i < blk.equality; ++i) {
             ConstraintRow& row = rows_[blk.firstRow + i];
             if (row.softness == &*s.rigidJointSoftness) row.softness = &islandRigid_;
@@ -391,10 +392,9 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     }
   }
   forEachIndex(static_cast<int>(blockCount), [&](int bi) {
-    const int island = islandOfBlock_[bi];
-    const bool inIslandBlock = useIslandBlock_ && islandBlocks_.covers(island);
-    finishBlock(s, h, blocks_[bi], inIslandBlock,
-                inIslandBlock && !blocks_[bi].unilateral && islandBlocks_.solvesBounded(island));
+    const bool inIslandBlock = useIslandBlock_ && islandBlocks_.solvesEquality(bi);
+    finishBlock(s, h, blocks_[bi], inIslandBlock && islandBlocks_.covers(islandOfBlock_[bi]),
+                inIslandBlock, inIslandBlock && islandBlocks_.solvesBounded(islandOfBlock_[bi]));
   });
   if (useIslandBlock_) {
     islandBlocks_.prepareFactors();
@@ -618,7 +618,7 @@ double Solver::blockSpringShare(const SolverSettings& s, double h, const Constra
 // Bias, CFM and effective masses of a block's rows, then K of its
 // equality (or contact normal) rows and its LDL^T.
 void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk,
-                         bool inIslandBlock, bool islandSolvesAll) {
+                         bool inIslandBlock, bool inGroup, bool islandSolvesAll) {
   const SolverBody& a = bodies_[blk.bodyA];
   const SolverBody& b = bodies_[blk.bodyB];
   ConstraintRow* rows = &rows_[blk.firstRow];
@@ -696,9 +696,10 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
     row.softness = nullptr;
   }
 
-  // An island block that solves this joint's rows, its limits and motors
-  // too, needs no factor of the joint's own.
-  if (islandSolvesAll) return;
+  // An island block or chain that solves this joint's equality rows needs
+  // no factor of the joint's own, unless the joint's limits and motors
+  // are solved in its null space (coupleBoundedRows).
+  if (islandSolvesAll || (inGroup && blk.bounded == 0)) return;
   // K = J M^-1 J^T + gamma for the equality rows, factored once here and
   // reused by every sweep of this (sub-)step.
   const int ne = blk.equality;
@@ -795,8 +796,7 @@ void Solver::warmStart() {
 }
 
 void Solver::sweep(int island, bool useBias, BlockMode mode) {
-  const bool islandBlock = useIslandBlock_ && islandBlocks_.covers(island);
-  const bool islandBounded = islandBlock && islandBlocks_.solvesBounded(island);
+  const bool islandBounded = useIslandBlock_ && islandBlocks_.solvesBounded(island);
   for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
     ConstraintBlock& blk = blocks_[bi];
     SolverBody& a = bodies_[blk.bodyA];
@@ -814,15 +814,19 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     }
     // The rigid block first, then limits and motors in its null space
     // (row.h says why).
-    if (!islandBlock) solveEqualityBlock(blk, useBias, a, b);
+    if (!useIslandBlock_ || !islandBlocks_.solvesEquality(bi))
+      solveEqualityBlock(blk, useBias, a, b);
     if (!islandBounded) {
       for (int i = blk.boundedBegin(); i < blk.boundedEnd(); ++i)
         solveCoupledRow(i, useBias, rows, ne, a, b);
     }
   }
-  // The island's equality rows all at once, then its limits and motors in
-  // their null space (row.h says why).
-  if (islandBlock) islandBlocks_.solve(island, useBias, blocks_, rows_, bodies_);
+  // The island's equality rows all at once (or chain by chain), then its
+  // limits and motors in their null space (row.h says why).
+  if (useIslandBlock_) {
+    for (int g = islandBlocks_.groupsBegin(island); g < islandBlocks_.groupsEnd(island); ++g)
+      islandBlocks_.solve(g, useBias, blocks_, rows_, bodies_);
+  }
   if (islandBounded) islandBlocks_.solveBounded(island, useBias, blocks_, rows_, bodies_);
 }
 

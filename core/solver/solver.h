@@ -94,7 +94,7 @@ class Solver {
   double blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
                           bool inIslandBlock) const;
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk, bool inIslandBlock,
-                   bool islandSolvesAll);
+                   bool inGroup, bool islandSolvesAll);
   // J v with the velocities the (sub-)step started from.
   double startVelocity(const ConstraintRow& row, const ConstraintBlock& blk) const;
   void solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& a, SolverBody& b);

@@ -65,6 +65,12 @@ ODE_API void dWorldSetBlockRecordResiduals(dWorldID w, int on);
  * dWorldStep, 0 in the paper preset). BLOCKSTEP_ISLAND_BLOCK_ROWS. */
 ODE_API void dWorldSetBlockIslandBlockRows(dWorldID w, int rows);
 ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
+/* Cut an island with more joint rows than that (a cloth, a lattice) into
+ * chains of joints, each of at most that many rows and solved as one
+ * exact block inside the sweeps (1), or keep one block per joint (0, the
+ * default). Holds under every solver. BLOCKSTEP_CHAIN_BLOCKS. */
+ODE_API void dWorldSetBlockChainBlocks(dWorldID w, int on);
+ODE_API int dWorldGetBlockChainBlocks(dWorldID w);
 /* More sub-steps while a jointed body turns fast: a step runs as many as
  * keep the fastest turn of a constrained body (over the last step) within
  * this angle per sub-step, up to 4 times the set count. Joints are
