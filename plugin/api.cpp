@@ -195,12 +195,14 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_CHAIN_BLOCKS", v, 0, n, 1)) {
     s.chainBlocks = n != 0;
   }
+  // Angles, rad (parseReal takes finite numbers >= 0 only; 0: off).
   if (const char* v = std::getenv("BLOCKSTEP_MAX_TURN");
       v && parseReal("BLOCKSTEP_MAX_TURN", v, x)) {
-    if (x >= 0.0 && std::isfinite(x))
-      s.maxTurnPerSubstep = x;
-    else
-      say("ignoring BLOCKSTEP_MAX_TURN=%s: expected an angle >= 0 (rad; 0: off)", v);
+    s.maxTurnPerSubstep = x;
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_REFRESH_TURN");
+      v && parseReal("BLOCKSTEP_REFRESH_TURN", v, x)) {
+    s.maxTurnPerRefresh = x;
   }
   if (const char* v = std::getenv("BLOCKSTEP_RELAX_DRIFT")) {
     if (std::strcmp(v, "0") == 0 || std::strcmp(v, "1") == 0)
@@ -537,19 +539,36 @@ int dWorldGetBlockChainBlocks(dWorldID w) {
     return (on ? *on : currentSettings(w).chainBlocks) ? 1 : 0;
   });
 }
-void dWorldSetBlockMaxTurn(dWorldID w, dReal radians) {
+// A world's angle setting (rad, >= 0; 0: off) held apart from its solver:
+// a bad value is said and ignored; unset, the solver's own is reported.
+using AngleSetting = std::optional<double> ode::BridgeSettings::*;
+void setWorldAngle(const char* call, dWorldID w, dReal radians, AngleSetting setting) {
   if (!(radians >= 0.0) || !std::isfinite(radians)) {
-    say("dWorldSetBlockMaxTurn(%g): expected an angle >= 0 (rad; 0: off); call ignored",
-        double(radians));
+    say("%s(%g): expected an angle >= 0 (rad; 0: off); call ignored", call, double(radians));
     return;
   }
-  guarded(__func__, [&] { LockedWorld(w).settings().maxTurnPerSubstep = radians; });
+  guarded(call, [&] { LockedWorld(w).settings().*setting = radians; });
+}
+dReal worldAngle(const char* call, dWorldID w, AngleSetting setting,
+                 double SolverSettings::*solverOwn) {
+  return guarded(call, dReal(0), [&] {
+    const std::optional<double> angle = LockedWorld(w).settings().*setting;
+    return dReal(angle ? *angle : currentSettings(w).*solverOwn);
+  });
+}
+void dWorldSetBlockMaxTurn(dWorldID w, dReal radians) {
+  setWorldAngle(__func__, w, radians, &ode::BridgeSettings::maxTurnPerSubstep);
 }
 dReal dWorldGetBlockMaxTurn(dWorldID w) {
-  return guarded(__func__, dReal(0), [&] {
-    const std::optional<double> turn = LockedWorld(w).settings().maxTurnPerSubstep;
-    return dReal(turn ? *turn : currentSettings(w).maxTurnPerSubstep);
-  });
+  return worldAngle(__func__, w, &ode::BridgeSettings::maxTurnPerSubstep,
+                    &SolverSettings::maxTurnPerSubstep);
+}
+void dWorldSetBlockRefreshTurn(dWorldID w, dReal radians) {
+  setWorldAngle(__func__, w, radians, &ode::BridgeSettings::maxTurnPerRefresh);
+}
+dReal dWorldGetBlockRefreshTurn(dWorldID w) {
+  return worldAngle(__func__, w, &ode::BridgeSettings::maxTurnPerRefresh,
+                    &SolverSettings::maxTurnPerRefresh);
 }
 void dWorldSetBlockRelaxDrift(dWorldID w, int on) {
   if (on != 0 && on != 1) {
@@ -686,6 +705,7 @@ int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* out) {
       out->stepSeconds = s.stepSeconds;
       out->collideSeconds = s.collideSeconds;
       out->handedToOde = state->handedToOde;
+      out->preparedSubsteps = s.preparedSubsteps;
     }
     return 1;
   });

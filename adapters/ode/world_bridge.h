@@ -61,6 +61,9 @@ struct BridgeSettings {
   // The turn per sub-step above which a step runs more sub-steps
   // (SolverSettings::maxTurnPerSubstep; unset: the solver's own).
   std::optional<double> maxTurnPerSubstep;
+  // The turn before sub-steps prepare their rows again
+  // (SolverSettings::maxTurnPerRefresh; unset: the solver's own).
+  std::optional<double> maxTurnPerRefresh;
   // Relax closes the joints' linearization drift
   // (SolverSettings::relaxCancelsDrift; unset: the solver's own).
   std::optional<bool> relaxCancelsDrift;

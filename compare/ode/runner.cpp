@@ -82,6 +82,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.islandRows) dWorldSetBlockIslandBlockRows(w, *o.islandRows);
   if (o.chains) dWorldSetBlockChainBlocks(w, *o.chains ? 1 : 0);
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
+  if (o.refreshTurn) dWorldSetBlockRefreshTurn(w, *o.refreshTurn);
   if (o.relaxDrift) dWorldSetBlockRelaxDrift(w, *o.relaxDrift ? 1 : 0);
   if (o.threads) dWorldSetBlockThreads(w, *o.threads);
   if (o.persistence) dWorldSetBlockContactPersistence(w, *o.persistence);
@@ -300,6 +301,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.chains = flag(text, key, value);
   } else if (key == "max_turn") {
     o.maxTurn = decimal(text, key, value, 0.0, 10.0);
+  } else if (key == "refresh_turn") {
+    o.refreshTurn = decimal(text, key, value, 0.0, 10.0);
   } else if (key == "threads") {
     o.threads = whole(text, key, value, 0, 256);
   } else if (key == "relax_drift") {
@@ -335,6 +338,9 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"island_rows", "blockstep: island blocks up to this many joint rows, 0: off"},
           {"chains", "blockstep: larger islands cut into chains of that many rows, 0 or 1"},
           {"max_turn", "blockstep: more sub-steps past this turn per sub-step, rad, 0: off"},
+          {"refresh_turn",
+           "blockstep: sub-steps keep their rows until bodies turn this far, rad, 0: always "
+           "prepare"},
           {"relax_drift", "blockstep: relax closes the joints' linearization drift, 0 or 1"},
           {"threads", "blockstep: threads sweeping independent islands, 0: one per core"},
           {"persistence", "blockstep: contact persistence, m, 0: off"},

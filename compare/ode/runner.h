@@ -44,6 +44,7 @@ struct Overrides {
   std::optional<int> islandRows;      // island blocks up to this many joint rows (0: off)
   std::optional<bool> chains;         // larger islands cut into chains of that many rows
   std::optional<double> maxTurn;      // rad per sub-step before more sub-steps (0: off)
+  std::optional<double> refreshTurn;  // rad before sub-steps prepare rows again (0: always)
   std::optional<bool> relaxDrift;     // relax closes the joints' linearization drift
   std::optional<int> threads;         // threads sweeping independent islands (0: per core)
   std::optional<double> persistence;  // contact persistence, m (0: off)

@@ -81,6 +81,8 @@ class Solver {
   Softness softnessOf(const Softness& soft, double h) const;
   void integrateVelocities(const StepInput& in, const SolverSettings& s, double h);
   void prepare(const StepInput& in, const SolverSettings& s, double h);
+  bool carriesRows(const SolverSettings& s, int sub, double h);
+  void carryRows(const StepInput& in, const SolverSettings& s, double h);
   void buildJointBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t j,
                        ConstraintBlock& blk);
   void buildContactBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t c,
@@ -141,6 +143,7 @@ class Solver {
   Softness islandRigid_;
   double peakTurnRate_ = 0.0;      // rad/s: this step's, so far
   double lastPeakTurnRate_ = 0.0;  // rad/s: the last step's
+  bool turnRateSeen_ = false;      // a step has measured it (a first step has no history)
   double nominalSubstep_ = 0.0;    // s: the step over the settings' sub-steps
   void coupleBoundedRows(const ConstraintBlock& blk);
   void solveCoupledRow(int rowIndex, bool useBias, ConstraintRow* eq, int ne, SolverBody& a,
@@ -193,6 +196,15 @@ class Solver {
   double stepSize_ = 0.0;               // the whole step being taken (sub-steps divide it)
   std::int32_t firstFreshContact_ = 0;  // StepInput::firstFreshContact (penetrationRate)
   double sinceStepStart_ = 0.0;         // when the current sub-step starts, s into the step
+  // Carried rows (SolverSettings::maxTurnPerRefresh): per row, its bias
+  // rate and its error when prepared; per body, where it was then.
+  std::vector<double> carriedBiasRate_, preparedC_;
+  std::vector<Vec3> preparedX_;
+  std::vector<Quat> preparedQ_;
+  std::vector<Vec3> movedX_, movedQ_;  // per solver body: moved and turned since
+  bool rowsCarriable_ = false;         // no row of the last prepare can change kind
+  double kinematicTurnRate_ = 0.0;     // (rad/s)^2: the fastest kinematic body in a block
+  int preparedAt_ = 0;                 // the sub-step the rows were prepared in
 };
 
 }  // namespace blockstep

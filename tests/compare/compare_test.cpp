@@ -146,6 +146,7 @@ TEST(CompareSteppers, SettingsAfterTheNameAndSweepsOverThem) {
   EXPECT_EQ(q.substeps, 4);
   EXPECT_EQ(parseStepper("blockstep,iterations=40").iterations, 40);  // the quickstep it follows
   EXPECT_EQ(parseStepper("blockstep,chains=1").overrides.chains, true);
+  EXPECT_EQ(parseStepper("blockstep,refresh_turn=0.002").overrides.refreshTurn, 0.002);
 
   const std::vector<std::string> swept = sweepLabels(
       sweepLabels({"quickstep:20", "blockstep:substep:10"}, "sweeps=1,2"), "cfm=0,1e-3");
@@ -164,7 +165,7 @@ TEST(CompareSteppers, SettingsAfterTheNameAndSweepsOverThem) {
         "direct,iterations=5", "blockstep,warm=2", "blockstep,mode=diagonal", "blockstep,erp=1.5",
         "blockstep,erp=x", "blockstep,relax=1.5", "blockstep,foo=1", "blockstep,erp",
         "blockstep,=1", "blockstep,erp=nan", "quickstep:20,collision=core",
-        "blockstep,collision=gjk", "blockstep,chains=2"}) {
+        "blockstep,collision=gjk", "blockstep,chains=2", "blockstep,refresh_turn=-1"}) {
     try {
       parseStepper(bad);
       ADD_FAILURE() << bad << " was accepted";

@@ -153,7 +153,16 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   dWorldSetBlockSubsteps(p.s.world, 5000);
   dWorldSetBlockRelaxIterations(p.s.world, -1);
   dWorldSetBlockPaperSolver(p.s.world, 0);
+  const dReal refreshTurn = dWorldGetBlockRefreshTurn(p.s.world);
+  dWorldSetBlockRefreshTurn(p.s.world, -0.5);
+  dWorldSetBlockRefreshTurn(p.s.world, std::nan(""));
   const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("dWorldSetBlockRefreshTurn(-0.5): expected an angle >= 0"), std::string::npos)
+      << err;
+  EXPECT_NE(err.find("dWorldSetBlockRefreshTurn(nan): expected an angle >= 0"), std::string::npos)
+      << err;
+  EXPECT_EQ(refreshTurn, 0.001);  // the sub-stepped preset's
+  EXPECT_EQ(dWorldGetBlockRefreshTurn(p.s.world), refreshTurn);
   EXPECT_NE(err.find("dWorldSetBlockIterations(1000000000): expected 1 to 100000; call ignored"),
             std::string::npos)
       << err;

@@ -80,6 +80,15 @@ ODE_API int dWorldGetBlockChainBlocks(dWorldID w);
  * for dWorldStep and the paper preset). BLOCKSTEP_MAX_TURN. */
 ODE_API void dWorldSetBlockMaxTurn(dWorldID w, dReal radians);
 ODE_API dReal dWorldGetBlockMaxTurn(dWorldID w);
+/* Sub-steps keep the rows, K and factors an earlier sub-step of the same
+ * step prepared while no jointed body has turned more than this angle
+ * since then (rad; 0: every sub-step prepares): each row's error follows
+ * the bodies to first order. Steps with joint limits or motors, bouncing
+ * contacts or moving surfaces prepare every sub-step. Holds under every
+ * solver; the default is the solver's own (0.005 rad sub-stepped, 0 for
+ * dWorldStep and the paper preset). BLOCKSTEP_REFRESH_TURN. */
+ODE_API void dWorldSetBlockRefreshTurn(dWorldID w, dReal radians);
+ODE_API dReal dWorldGetBlockRefreshTurn(dWorldID w);
 /* 1: relax leaves each joint the velocity that closes the drift of its
  * linearized rows over the next sub-step (r (w h)^2 / 2 for a joint
  * turning at w), and a swinging chain keeps its energy (PyODE's tutorial2:
@@ -154,6 +163,9 @@ typedef struct dBlockStepStats {
    * explain: dWorldSetBlockRunawayLimits): put back as they were before
    * the step and stepped by ODE's own stepper instead. */
   int handedToOde;
+  /* Sub-steps that prepared their rows; the others kept an earlier
+   * sub-step's (dWorldSetBlockRefreshTurn). */
+  int preparedSubsteps;
 } dBlockStepStats;
 /* Returns 1 and fills stats, 0 for a world blockstep has not seen. */
 ODE_API int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* stats);
