@@ -99,8 +99,11 @@ struct ConstraintBlock {
   // block's solution leaves that row's residual to them.
   bool redundant = false;
   // LDL^T of the equality block: unit lower L below the diagonal,
-  // 1/D on the diagonal (0 where the pivot vanished: a redundant row).
+  // 1/D on the diagonal (0 where the pivot vanished: a redundant row);
+  // or, once `inverted`, the matrix of its solve (ldltInvert).
   Eigen::Matrix<double, 6, 6> ldl = Eigen::Matrix<double, 6, 6>::Zero();
+  bool factored = false;  // ldl holds this (sub-)step's factor of the block's own
+  bool inverted = false;
   // c where the equality rows' spring is relative to the block's own
   // effective mass, Gamma = c K (Solver::blockSpringShare says why), the
   // rows' gamma then 0 and ldl the factor of (1 + c) K; 0 otherwise.

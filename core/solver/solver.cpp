@@ -21,6 +21,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 constexpr double kNoBudget = -1.0;
+// Kept factors of blocks with at least this many equality rows become
+// inverses (carryRows); smaller ones solve as fast by substitution.
+constexpr int kInvertFromRows = 3;
 
 double seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
@@ -405,6 +408,7 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     preparedC_.resize(rows_.size());
   }
   rowsCarriable_ = s.maxTurnPerRefresh > 0.0;
+  factorsInverted_ = false;
   kinematicTurnRate_ = 0.0;
   if (rowsCarriable_) {
     // One more for the dummy static body (solverIndex).
@@ -487,6 +491,19 @@ void Solver::carryRows(const StepInput& in, const SolverSettings& s, double h) {
     movedQ_[i] = rotationBetween(preparedQ_[i], in.bodies[i].orientation);
   });
   movedX_[dummy_] = movedQ_[dummy_] = Vec3::Zero();
+  // The kept factors serve every sweep until the next prepare: the first
+  // sub-step that keeps them turns each into the matrix of its solve
+  // (ldltInvert), one product a sweep instead of two substitutions.
+  if (!factorsInverted_) {
+    forEachIndex(static_cast<int>(blocks_.size()), [&](int bi) {
+      ConstraintBlock& blk = blocks_[bi];
+      if (blk.factored && blk.equality >= kInvertFromRows) {
+        ldltInvert(blk.ldl, blk.equality);
+        blk.inverted = true;
+      }
+    });
+    factorsInverted_ = true;
+  }
   for (const ConstraintBlock& blk : blocks_) {
     const Vec3& dxA = movedX_[blk.bodyA];
     const Vec3& dqA = movedQ_[blk.bodyA];
@@ -813,7 +830,9 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
   // An island block or chain that solves this joint's equality rows needs
   // no factor of the joint's own, unless the joint's limits and motors
   // are solved in its null space (coupleBoundedRows).
+  blk.factored = blk.inverted = false;
   if (islandSolvesAll || (inGroup && blk.bounded == 0)) return;
+  blk.factored = true;
   // K = J M^-1 J^T + gamma for the equality rows, factored once here and
   // reused by every sweep of this (sub-)step.
   const int ne = blk.equality;
@@ -952,7 +971,10 @@ void Solver::solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& 
   double dP[6];
   for (int i = 0; i < ne; ++i)
     dP[i] = relaxSkips(eq[i], useBias) ? 0.0 : -rowResidual(eq[i], useBias, a, b);
-  ldltSolve(blk.ldl, ne, dP);
+  if (blk.inverted)
+    multiplyBlock(blk.ldl, ne, dP);
+  else
+    ldltSolve(blk.ldl, ne, dP);
   if (blk.springShare > 0.0) {  // Gamma = c K (blockSpringShare)
     const double impulseShare = blk.springShare / (1.0 + blk.springShare);
     for (int i = 0; i < ne; ++i)

@@ -202,6 +202,7 @@ class Solver {
   std::vector<Vec3> preparedX_;
   std::vector<Quat> preparedQ_;
   std::vector<Vec3> movedX_, movedQ_;  // per solver body: moved and turned since
+  bool factorsInverted_ = false;       // the kept factors are inverses (carryRows)
   bool rowsCarriable_ = false;         // no row of the last prepare can change kind
   double kinematicTurnRate_ = 0.0;     // (rad/s)^2: the fastest kinematic body in a block
   int preparedAt_ = 0;                 // the sub-step the rows were prepared in

@@ -6,6 +6,7 @@
 #include <cstdlib>
 
 #include "compare/native/scenes.h"
+#include "core/constraints/ldlt.h"
 #include "core/solver/island_block.h"
 #include "core/solver/row_ops.h"
 #include "support/test_world.h"
@@ -1106,6 +1107,46 @@ TEST(Solver, AStackAtRestKeepsItsRowsAndStandsAsWhenEverySubstepPrepares) {
   EXPECT_LT(kept.preparedPerStep, 1.5);
   EXPECT_NEAR(kept.drift, fresh.drift, 5e-5);
   EXPECT_NEAR(kept.penetration, fresh.penetration, 5e-5);
+}
+
+}  // namespace
+}  // namespace blockstep::test
+
+namespace blockstep::test {
+namespace {
+
+// ldltInvert turns a factor into the matrix of its solve: on a regular
+// 6 x 6 K it is K^-1, and on a singular one (two rows alike, rank 5) the
+// product gives what the substitutions give, finite, with the redundant
+// direction left out.
+TEST(Ldlt, InverseIsTheMatrixOfTheSolveOnRegularAndSingularBlocks) {
+  Eigen::Matrix<double, 6, 6> A;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j)
+      A(i, j) = (i == j ? 2.0 : 0.0) + std::sin(1.0 + 7.0 * i * i + 3.0 * j);
+  for (const bool singular : {false, true}) {
+    if (singular) A.row(4) = A.row(1);
+    const BlockMatrix K = A * A.transpose();
+    BlockMatrix factor = K;
+    ldltFactor(factor, 6);
+    BlockMatrix inverse = factor;
+    ldltInvert(inverse, 6);
+    for (int trial = 0; trial < 3; ++trial) {
+      double bySolve[6], byProduct[6];
+      for (int i = 0; i < 6; ++i)
+        bySolve[i] = byProduct[i] = std::cos(2.0 * i + trial);
+      ldltSolve(factor, 6, bySolve);
+      multiplyBlock(inverse, 6, byProduct);
+      for (int i = 0; i < 6; ++i) {
+        ASSERT_TRUE(std::isfinite(byProduct[i]));
+        EXPECT_NEAR(byProduct[i], bySolve[i], 1e-9 * (1.0 + std::abs(bySolve[i])))
+            << (singular ? "singular" : "regular") << " row " << i;
+      }
+    }
+    if (!singular) {
+      EXPECT_LT((K * inverse - BlockMatrix::Identity()).norm(), 1e-9);
+    }
+  }
 }
 
 }  // namespace
