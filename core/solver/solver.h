@@ -85,6 +85,7 @@ class Solver {
   void carryRows(const StepInput& in, const SolverSettings& s, double h);
   void buildJointBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t j,
                        ConstraintBlock& blk);
+  const Vec3& turnSinceStart(const StepInput& in, BodyId i);
   void buildContactBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t c,
                          ConstraintBlock& blk);
   double penetrationRate(const ConstraintRow& row, const ConstraintBlock& blk, double h) const;
@@ -201,11 +202,16 @@ class Solver {
   std::vector<double> carriedBiasRate_, preparedC_;
   std::vector<Vec3> preparedX_;
   std::vector<Quat> preparedQ_;
-  std::vector<Vec3> movedX_, movedQ_;  // per solver body: moved and turned since
-  bool factorsInverted_ = false;       // the kept factors are inverses (carryRows)
-  bool rowsCarriable_ = false;         // no row of the last prepare can change kind
-  double kinematicTurnRate_ = 0.0;     // (rad/s)^2: the fastest kinematic body in a block
-  int preparedAt_ = 0;                 // the sub-step the rows were prepared in
+  std::vector<Vec3> movedX_, movedQ_;
+  // Per body, its turn since the step's start and the prepare that worked
+  // it out (turnSinceStart).
+  std::vector<Vec3> turnSinceStart_;
+  std::vector<std::uint32_t> turnStamp_;
+  std::uint32_t prepareStamp_ = 0;  // per solver body: moved and turned since
+  bool factorsInverted_ = false;    // the kept factors are inverses (carryRows)
+  bool rowsCarriable_ = false;      // no row of the last prepare can change kind
+  double kinematicTurnRate_ = 0.0;  // (rad/s)^2: the fastest kinematic body in a block
+  int preparedAt_ = 0;              // the sub-step the rows were prepared in
 };
 
 }  // namespace blockstep
