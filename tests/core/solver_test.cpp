@@ -1149,5 +1149,28 @@ TEST(Ldlt, InverseIsTheMatrixOfTheSolveOnRegularAndSingularBlocks) {
   }
 }
 
+// invertSymmetric3 gives K^-1 of a ball joint's block (the 3 x 3 of a
+// 1 m link holding a 5 cm bob: diagonals 1 and 1001) from its lower
+// triangle, and refuses a K whose LDL^T would find a redundant row (two
+// rows alike) or a diagonal far below the others, leaving K as it was.
+TEST(Ldlt, ClosedForm3x3InverseOrRefusal) {
+  BlockMatrix K = BlockMatrix::Zero();
+  K.topLeftCorner<3, 3>() << 1001.0, 0.3, -0.2, 0.3, 1.0, 0.05, -0.2, 0.05, 1001.0;
+  const Eigen::Matrix3d expected = K.topLeftCorner<3, 3>().inverse();
+  BlockMatrix lowerOnly = K;
+  lowerOnly(0, 1) = lowerOnly(0, 2) = lowerOnly(1, 2) = 99.0;  // never read
+  ASSERT_TRUE(invertSymmetric3(lowerOnly));
+  EXPECT_LT((lowerOnly.topLeftCorner<3, 3>() - expected).norm(), 1e-12 * expected.norm());
+
+  BlockMatrix singular = BlockMatrix::Zero();
+  singular.topLeftCorner<3, 3>() << 2.0, 2.0, 0.5, 2.0, 2.0, 0.5, 0.5, 0.5, 3.0;
+  const BlockMatrix before = singular;
+  EXPECT_FALSE(invertSymmetric3(singular));
+  EXPECT_EQ(singular, before);
+  BlockMatrix lopsided = BlockMatrix::Zero();
+  lopsided.topLeftCorner<3, 3>().diagonal() << 1.0, 1e-8, 1.0;
+  EXPECT_FALSE(invertSymmetric3(lopsided));
+}
+
 }  // namespace
 }  // namespace blockstep::test
