@@ -38,6 +38,20 @@
 
 namespace blockstep {
 
+// A softness's rates at one step h, worked out once for all the rows that
+// share it (Solver::finishBlock: a block's rows mostly share one, and the
+// per-row divisions were a good part of preparing a cloth). The same
+// operations as Softness::biasRate() and gamma(), so the same results.
+struct SoftnessAtStep {
+  double biasRate = 0.0;    // beta / h
+  double gammaFixed = 0.0;  // gamma, when it does not scale with K
+  double perK = 1.0;        // gamma = kDiag / perK, when it does (massRelative)
+  bool massRelative = false;
+  double gamma(double kDiag) const { return massRelative ? kDiag / perK : gammaFixed; }
+  // gamma(h, 1.0): c of a spring relative to the row's mass.
+  double gammaUnit() const { return massRelative ? 1.0 / perK : gammaFixed; }
+};
+
 struct Softness {
   enum class Mode : unsigned char { ErpCfm, Spring, StepSpring, Stiffness };
   Mode mode = Mode::ErpCfm;
@@ -113,6 +127,18 @@ struct Softness {
   }
   // Whether gamma scales with the row's K (a spring relative to its mass).
   bool massRelative() const { return mode == Mode::Spring || mode == Mode::StepSpring; }
+  SoftnessAtStep atStep(double h) const {
+    SoftnessAtStep r;
+    r.biasRate = biasRate(h);
+    r.massRelative = massRelative();
+    if (r.massRelative) {
+      const double hw = omegaH(h);
+      r.perK = hw * (hw + 2.0 * dampingRatio);
+    } else {
+      r.gammaFixed = gamma(h, 1.0);
+    }
+    return r;
+  }
   // h times the angular frequency.
   double omegaH(double h) const {
     return 2.0 * kPi * (mode == Mode::StepSpring ? stepFraction : hertz * h);

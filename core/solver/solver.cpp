@@ -756,17 +756,25 @@ double Solver::startVelocity(const ConstraintRow& row, const ConstraintBlock& bl
 // This returns c when every equality row of a joint block has the same
 // mass-relative spring, else 0 (the rows keep their own gamma). An
 // island block keeps its own (its rows are rigid there, prepare says why).
+const SoftnessAtStep& Solver::ratesOf(const Softness& soft, double h, SoftnessCache& cache) const {
+  if (cache.of != &soft) {
+    cache.rates = softnessOf(soft, h).atStep(h);
+    cache.of = &soft;
+  }
+  return cache.rates;
+}
+
 double Solver::blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
-                                bool inIslandBlock) const {
+                                bool inIslandBlock, SoftnessCache& cache) const {
   if (blk.unilateral || blk.equality < 2 || inIslandBlock || s.blockMode != BlockMode::Block)
     return 0.0;
   const ConstraintRow* eq = &rows_[blk.firstRow];
   double share = 0.0;
   for (int i = 0; i < blk.equality; ++i) {
     if (eq[i].biasKind != RowBias::Baumgarte || !eq[i].softness) return 0.0;
-    const Softness soft = softnessOf(*eq[i].softness, h);
-    if (soft.mode != Softness::Mode::Spring && soft.mode != Softness::Mode::StepSpring) return 0.0;
-    const double c = soft.gamma(h, 1.0);
+    const SoftnessAtStep& soft = ratesOf(*eq[i].softness, h, cache);
+    if (!soft.massRelative) return 0.0;
+    const double c = soft.gammaUnit();
     if (i > 0 && c != share) return 0.0;
     share = c;
   }
@@ -780,7 +788,8 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
   const SolverBody& a = bodies_[blk.bodyA];
   const SolverBody& b = bodies_[blk.bodyB];
   ConstraintRow* rows = &rows_[blk.firstRow];
-  blk.springShare = blockSpringShare(s, h, blk, inIslandBlock);
+  SoftnessCache cache;
+  blk.springShare = blockSpringShare(s, h, blk, inIslandBlock, cache);
   for (int i = 0; i < blk.rowCount(); ++i) {
     ConstraintRow& row = rows[i];
     row.invIangA = a.invI * row.angA;
@@ -813,9 +822,9 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
           const double C = std::min(0.0, row.C + row.slop);
           row.bias = std::max(carriedBiasRate_[&row - rows_.data()] * C, -row.maxBias);
           row.biasRelax = 0.0;
-          const Softness soft = softnessOf(*row.softness, h);
-          row.gamma = soft.gamma(h, kDiag);
-          row.gammaShare = soft.massRelative() ? soft.gamma(h, 1.0) : 0.0;
+          const SoftnessAtStep& soft = ratesOf(*row.softness, h, cache);
+          row.gamma = soft.gamma(kDiag);
+          row.gammaShare = soft.massRelative ? soft.gammaUnit() : 0.0;
         }
         // A moving surface (ODE motionN) asks for that separating speed.
         row.bias -= row.target;
@@ -823,13 +832,13 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
         break;
       }
       case RowBias::Baumgarte: {
-        const Softness soft = softnessOf(*row.softness, h);
-        row.bias = soft.biasRate(h) * row.C;
-        carriedBiasRate_[&row - rows_.data()] = soft.biasRate(h);
+        const SoftnessAtStep& soft = ratesOf(*row.softness, h, cache);
+        row.bias = soft.biasRate * row.C;
+        carriedBiasRate_[&row - rows_.data()] = soft.biasRate;
         row.biasRelax = 0.0;
         // In a block with a spring share the block carries the softness.
-        row.gamma = i < blk.equality && blk.springShare > 0.0 ? 0.0 : soft.gamma(h, kDiag);
-        row.gammaShare = soft.massRelative() ? soft.gamma(h, 1.0) : 0.0;
+        row.gamma = i < blk.equality && blk.springShare > 0.0 ? 0.0 : soft.gamma(kDiag);
+        row.gammaShare = soft.massRelative ? soft.gammaUnit() : 0.0;
         break;
       }
     }

@@ -79,6 +79,13 @@ class Solver {
   // A row's softness as this step uses it (a StepSpring at the nominal
   // sub-step when the step runs more).
   Softness softnessOf(const Softness& soft, double h) const;
+  // The rates of the softness last asked for, kept while the next row
+  // asks for the same one (finishBlock).
+  struct SoftnessCache {
+    const Softness* of = nullptr;
+    SoftnessAtStep rates;
+  };
+  const SoftnessAtStep& ratesOf(const Softness& soft, double h, SoftnessCache& cache) const;
   void integrateVelocities(const StepInput& in, const SolverSettings& s, double h);
   void prepare(const StepInput& in, const SolverSettings& s, double h);
   bool carriesRows(const SolverSettings& s, int sub, double h);
@@ -95,7 +102,7 @@ class Solver {
   // below anything a step moves, far above the factor's rounding.
   static constexpr double kUnmetResidual = 1e-3;
   double blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
-                          bool inIslandBlock) const;
+                          bool inIslandBlock, SoftnessCache& cache) const;
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk, bool inIslandBlock,
                    bool inGroup, bool islandSolvesAll);
   // J v with the velocities the (sub-)step started from.
