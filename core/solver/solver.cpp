@@ -1066,7 +1066,10 @@ void Solver::solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& 
 void Solver::projectedContactSweeps(ConstraintBlock& blk, bool useBias, SolverBody& a,
                                     SolverBody& b) {
   ConstraintRow* eq = &rows_[blk.firstRow];
-  for (int pass = 0; pass < 3; ++pass) {
+  // One point alone is exact in one pass (clamped at 0, a second finds it
+  // separating and leaves it there).
+  const int passes = blk.equality == 1 ? 1 : 3;
+  for (int pass = 0; pass < passes; ++pass) {
     for (int i = 0; i < blk.equality; ++i)
       solveRow(eq[i], useBias, a, b);
   }
