@@ -34,6 +34,23 @@ void solveBlock(const ConstraintBlock& blk, double* x) {
     ldltSolve(blk.ldl, blk.equality, x);
 }
 
+// A speculative row's bias without restitution (a contact normal, a
+// limit), shared by prepare and by sub-steps that keep their rows: while
+// apart (C > 0) it lets the gap close within the sub-step and no further;
+// past the stop, soft Baumgarte at `rate` beyond the slop, capped. A
+// moving surface (ODE motionN, the row's target) asks for that
+// separating speed on top.
+void setSpeculativeBias(ConstraintRow& row, double rate, double h) {
+  if (row.C > 0.0) {
+    row.bias = row.biasRelax = row.C / h;
+  } else {
+    row.bias = std::max(rate * std::min(0.0, row.C + row.slop), -row.maxBias);
+    row.biasRelax = 0.0;
+  }
+  row.bias -= row.target;
+  row.biasRelax -= row.target;
+}
+
 double seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
@@ -537,14 +554,9 @@ void Solver::carryRows(const StepInput& in, const SolverSettings& s, double h) {
       if (row.biasKind == RowBias::Baumgarte) {
         row.bias = carriedBiasRate_[r] * row.C;
       } else if (row.biasKind == RowBias::Speculative && row.bounce == 0.0) {
-        if (row.C > 0.0) {
-          row.bias = row.biasRelax = row.C / h;
-        } else {
-          row.bias = std::max(carriedBiasRate_[r] * std::min(0.0, row.C + row.slop), -row.maxBias);
-          row.biasRelax = 0.0;
-        }
-        row.bias -= row.target;
-        row.biasRelax -= row.target;
+        // A row apart when prepared keeps the rigid gamma and K it had
+        // then, should it close within the kept sub-steps.
+        setSpeculativeBias(row, carriedBiasRate_[r], h);
       }
     }
   }
@@ -575,13 +587,6 @@ void Solver::buildJointBlock(const StepInput& in, const SolverSettings& s, doubl
   }
 }
 
-// A manifold's rows: the normal of each point (section 4.2: the paper's
-// contact row, with B's side first in our sign convention; each point
-// along its own normal), solved together as one unilateral block; then two friction rows per point
-// bounded by that point's normal impulse, and rolling and spinning rows
-// bounded by the manifold's total normal impulse.
-// Row slots: normal i -> i, friction of point i along tangent d ->
-// kMaxManifoldPoints + 2 i + d, rolling about t1, t2, n -> 12, 13, 14.
 // Body i's turn since the step's start (a rotation vector), worked out
 // once per prepare: a body in a pile touches several others, and each of
 // its manifolds asked for it (the atan2 alone took 3% of a 1,000-body
@@ -594,6 +599,13 @@ const Vec3& Solver::turnSinceStart(const StepInput& in, BodyId i) {
   return turnSinceStart_[i];
 }
 
+// A manifold's rows: the normal of each point (section 4.2: the paper's
+// contact row, with B's side first in our sign convention; each point
+// along its own normal), solved together as one unilateral block; then two friction rows per point
+// bounded by that point's normal impulse, and rolling and spinning rows
+// bounded by the manifold's total normal impulse.
+// Row slots: normal i -> i, friction of point i along tangent d ->
+// kMaxManifoldPoints + 2 i + d, rolling about t1, t2, n -> 12, 13, 14.
 void Solver::buildContactBlock(const StepInput& in, const SolverSettings& s, double h,
                                std::int32_t c, ConstraintBlock& blk) {
   ContactManifold& m = in.contacts[c];
@@ -740,6 +752,16 @@ double Solver::startVelocity(const ConstraintRow& row, const ConstraintBlock& bl
          row.angB.dot(w(blk.bodyB));
 }
 
+// The rates of a softness at step h, worked out again only when a row
+// asks for another softness than the last one (SoftnessCache).
+const SoftnessAtStep& Solver::ratesOf(const Softness& soft, double h, SoftnessCache& cache) const {
+  if (cache.of != &soft) {
+    cache.rates = softnessOf(soft, h).atStep(h);
+    cache.of = &soft;
+  }
+  return cache.rates;
+}
+
 // A spring given relative to a row's effective mass (Spring, StepSpring:
 // k = m w^2 with m = 1 / K_ii, softness.h) is not one spring on a block
 // of rows: K_ii depends on the axes the rows happen to use. A 1 m ball
@@ -756,14 +778,6 @@ double Solver::startVelocity(const ConstraintRow& row, const ConstraintBlock& bl
 // This returns c when every equality row of a joint block has the same
 // mass-relative spring, else 0 (the rows keep their own gamma). An
 // island block keeps its own (its rows are rigid there, prepare says why).
-const SoftnessAtStep& Solver::ratesOf(const Softness& soft, double h, SoftnessCache& cache) const {
-  if (cache.of != &soft) {
-    cache.rates = softnessOf(soft, h).atStep(h);
-    cache.of = &soft;
-  }
-  return cache.rates;
-}
-
 double Solver::blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
                                 bool inIslandBlock, SoftnessCache& cache) const {
   if (blk.unilateral || blk.equality < 2 || inIslandBlock || s.blockMode != BlockMode::Block)
@@ -810,25 +824,26 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
         // A moving surface (ODE motionN, the row's target) bounces what
         // meets it at the speed relative to it, as ODE does.
         const double approach = startVelocity(row, blk) - row.target;  // < 0: closing
-        carriedBiasRate_[&row - rows_.data()] = row.softness ? penetrationRate(row, blk, h) : 0.0;
         if (row.bounce > 0.0 && approach < -row.bounceThreshold && row.C + approach * h <= 0.0) {
           // Restitution: leave at bounce times the approach speed; kept
           // through relax so the rebound survives it.
           row.bias = row.biasRelax = row.bounce * approach;
-        } else if (row.C > 0.0) {
-          row.bias = row.biasRelax = row.C / h;
-        } else {
-          // Past the stop: soft Baumgarte beyond the slop, capped.
-          const double C = std::min(0.0, row.C + row.slop);
-          row.bias = std::max(carriedBiasRate_[&row - rows_.data()] * C, -row.maxBias);
-          row.biasRelax = 0.0;
+          row.bias -= row.target;
+          row.biasRelax -= row.target;
+          break;
+        }
+        // The push-out rate, kept for carryRows when the rows may be kept
+        // (only then needed while the row is apart).
+        const bool apart = row.C > 0.0;
+        const double rate =
+            !apart || (rowsCarriable_ && row.softness) ? penetrationRate(row, blk, h) : 0.0;
+        carriedBiasRate_[&row - rows_.data()] = rate;
+        setSpeculativeBias(row, rate, h);
+        if (!apart) {
           const SoftnessAtStep& soft = ratesOf(*row.softness, h, cache);
           row.gamma = soft.gamma(kDiag);
           row.gammaShare = soft.massRelative ? soft.gammaUnit() : 0.0;
         }
-        // A moving surface (ODE motionN) asks for that separating speed.
-        row.bias -= row.target;
-        row.biasRelax -= row.target;
         break;
       }
       case RowBias::Baumgarte: {

@@ -1174,3 +1174,47 @@ TEST(Ldlt, ClosedForm3x3InverseOrRefusal) {
 
 }  // namespace
 }  // namespace blockstep::test
+
+namespace blockstep::test {
+namespace {
+
+// A sphere on a ball joint at its centre, 10 mm off its anchor, no
+// gravity: the sub-stepped preset's rigid-row spring pulls it back over
+// the step's 10 sub-steps. The sphere does not turn, so one prepare
+// serves the whole step, and the kept rows' error must follow the
+// sphere's move (C = C0 + J dx is exact for a move): the gap after the
+// step is the one preparing every sub-step gives. An error kept at C0
+// would pull as hard in the last sub-step as in the first and carry the
+// sphere past its anchor.
+TEST(Solver, KeptRowsFollowAMoveExactly) {
+  auto gapAfterAStep = [](double refreshTurn, int& prepared) {
+    World world;
+    world.setGravity(Vec3::Zero());
+    SolverSettings s = SolverSettings::subStepped(10);
+    s.maxTurnPerRefresh = refreshTurn;
+    world.setSettings(s);
+    const BodyId ball = world.createBody(sphereBody(Vec3::Zero(), 1.0, 0.1));
+    BallJointDesc joint;
+    joint.common.bodyB = ball;
+    joint.anchor = Vec3::Zero();
+    world.createJoint(joint);
+    world.step(1.0 / 60.0);  // the solver measures a turn rate (none)
+    world.setPosition(ball, Vec3(0.01, 0.0, 0.0));
+    world.step(1.0 / 60.0);
+    prepared = world.lastStepStats().preparedSubsteps;
+    return world.body(ball).position.x();
+  };
+  int keptPrepares = 0, freshPrepares = 0;
+  const double kept = gapAfterAStep(SolverSettings::kMaxTurnPerRefresh, keptPrepares);
+  const double fresh = gapAfterAStep(0.0, freshPrepares);
+  std::printf("gap after one step: kept rows %.9g m (%d prepares), every sub-step %.9g m (%d)\n",
+              kept, keptPrepares, fresh, freshPrepares);
+  EXPECT_EQ(keptPrepares, 1);
+  EXPECT_EQ(freshPrepares, 10);
+  EXPECT_GT(fresh, 0.0);
+  EXPECT_LT(fresh, 0.1 * 0.01) << "the spring closes most of the gap within the step";
+  EXPECT_NEAR(kept, fresh, 1e-9 * 0.01);
+}
+
+}  // namespace
+}  // namespace blockstep::test
