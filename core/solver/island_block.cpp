@@ -38,6 +38,8 @@ double coupling(const ConstraintRow& ri, const ConstraintBlock& pi, const Constr
 void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
                           const std::vector<std::int32_t>& islandStart, int islandCount,
                           int maxRows, bool cutIntoChains, const std::vector<Vec3>* positions) {
+  if (sameAsLastSelection(blocks, staticBody, islandStart, islandCount, maxRows, cutIntoChains))
+    return;
   wholeIsland_.assign(islandCount, -1);
   islandGroups_.assign(islandCount + 1, 0);
   groupOfBlock_.assign(blocks.size(), -1);
@@ -71,6 +73,25 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
   islandGroups_[islandCount] = static_cast<std::int32_t>(groups_.size());
 }
 
+// What select() reads of the blocks, islands and settings, laid out one
+// after another; chains also follow where the bodies are, so a selection
+// with chains is always made afresh.
+bool IslandBlocks::sameAsLastSelection(const std::vector<ConstraintBlock>& blocks,
+                                       std::int32_t staticBody,
+                                       const std::vector<std::int32_t>& islandStart,
+                                       int islandCount, int maxRows, bool cutIntoChains) {
+  signature_.clear();
+  signature_.insert(signature_.end(), {staticBody, islandCount, maxRows, cutIntoChains ? 1 : 0});
+  signature_.insert(signature_.end(), islandStart.begin(), islandStart.begin() + islandCount + 1);
+  for (const ConstraintBlock& blk : blocks) {
+    signature_.insert(signature_.end(), {blk.bodyA, blk.bodyB, blk.firstRow, blk.equality,
+                                         blk.bounded, blk.unilateral ? 1 : 0});
+  }
+  const bool same = !cutIntoChains && signature_ == lastSignature_;
+  std::swap(signature_, lastSignature_);
+  return same;
+}
+
 void IslandBlocks::collectJoints(int island, const std::vector<ConstraintBlock>& blocks,
                                  const std::vector<std::int32_t>& islandStart) {
   joints_.clear();
@@ -95,14 +116,15 @@ void IslandBlocks::addIsland(int island, int rows, const std::vector<ConstraintB
     for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
       const ConstraintBlock& blk = blocks[bi];
       for (std::int32_t body : {blk.bodyA, blk.bodyB}) {
-        if (body == staticBody) continue;
-        if (std::find(islandBodies_.begin() + g.firstBody, islandBodies_.end(), body) ==
-            islandBodies_.end())
-          islandBodies_.push_back(body);
+        if (body == staticBody || bodyMark_[body] == island) continue;
+        bodyMark_[body] = island;
+        islandBodies_.push_back(body);
       }
     }
   }
   g.bodyCount = static_cast<std::int32_t>(islandBodies_.size()) - g.firstBody;
+  for (std::int32_t k = g.firstBody; k < g.firstBody + g.bodyCount; ++k)
+    bodyMark_[islandBodies_[k]] = -1;
   for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
     const ConstraintBlock& blk = blocks[bi];
     if (blk.unilateral || touches) continue;
@@ -125,44 +147,11 @@ void IslandBlocks::addChains(int maxRows, const std::vector<ConstraintBlock>& bl
                              std::int32_t staticBody, const std::vector<Vec3>* positions) {
   constexpr double kStraightEnough = 0.5;  // cos 60 degrees
   const auto m = static_cast<std::int32_t>(joints_.size());
-  const auto bodySlots = static_cast<std::size_t>(staticBody) + 1;
-  if (incidenceStart_.size() < bodySlots) {
-    incidenceStart_.resize(bodySlots, -1);
-    incidenceCount_.resize(bodySlots, 0);
-    bodyMark_.resize(bodySlots, -1);
-  }
   auto otherBody = [&](std::int32_t l, std::int32_t body) {
     const ConstraintBlock& blk = blocks[joints_[l]];
     return blk.bodyA == body ? blk.bodyB : blk.bodyA;
   };
-  // Each movable body's joints (l, local), as compressed lists.
-  queue_.clear();  // the bodies touched
-  for (std::int32_t l = 0; l < m; ++l) {
-    const ConstraintBlock& blk = blocks[joints_[l]];
-    for (std::int32_t b : {blk.bodyA, blk.bodyB}) {
-      if (b == staticBody || (b == blk.bodyB && blk.bodyA == blk.bodyB)) continue;
-      if (incidenceStart_[b] < 0) {
-        incidenceStart_[b] = 0;
-        incidenceCount_[b] = 0;
-        queue_.push_back(b);
-      }
-      ++incidenceCount_[b];
-    }
-  }
-  std::int32_t offset = 0;
-  for (std::int32_t b : queue_) {
-    incidenceStart_[b] = offset;
-    offset += incidenceCount_[b];
-    incidenceCount_[b] = 0;
-  }
-  incidence_.resize(offset);
-  for (std::int32_t l = 0; l < m; ++l) {
-    const ConstraintBlock& blk = blocks[joints_[l]];
-    for (std::int32_t b : {blk.bodyA, blk.bodyB}) {
-      if (b == staticBody || (b == blk.bodyB && blk.bodyA == blk.bodyB)) continue;
-      incidence_[incidenceStart_[b] + incidenceCount_[b]++] = l;
-    }
-  }
+  collectIncidence(blocks, staticBody);
   // The unit direction from one body to another, or zero where a
   // position is unknown (the static frame).
   auto direction = [&](std::int32_t from, std::int32_t to) -> Vec3 {
@@ -222,10 +211,53 @@ void IslandBlocks::addChains(int maxRows, const std::vector<ConstraintBlock>& bl
       addGroup(blocks, staticBody);
     }
   }
-  for (std::int32_t b : queue_) {
+  clearIncidence();
+}
+
+void IslandBlocks::collectIncidence(const std::vector<ConstraintBlock>& blocks,
+                                    std::int32_t staticBody) {
+  const auto m = static_cast<std::int32_t>(joints_.size());
+  const auto bodySlots = static_cast<std::size_t>(staticBody) + 1;
+  if (incidenceStart_.size() < bodySlots) {
+    incidenceStart_.resize(bodySlots, -1);
+    incidenceCount_.resize(bodySlots, 0);
+    bodyMark_.resize(bodySlots, -1);
+  }
+  touched_.clear();
+  for (std::int32_t l = 0; l < m; ++l) {
+    const ConstraintBlock& blk = blocks[joints_[l]];
+    for (std::int32_t b : {blk.bodyA, blk.bodyB}) {
+      if (b == staticBody || (b == blk.bodyB && blk.bodyA == blk.bodyB)) continue;
+      if (incidenceStart_[b] < 0) {
+        incidenceStart_[b] = 0;
+        incidenceCount_[b] = 0;
+        touched_.push_back(b);
+      }
+      ++incidenceCount_[b];
+    }
+  }
+  std::int32_t offset = 0;
+  for (std::int32_t b : touched_) {
+    incidenceStart_[b] = offset;
+    offset += incidenceCount_[b];
+    incidenceCount_[b] = 0;
+  }
+  incidence_.resize(offset);
+  for (std::int32_t l = 0; l < m; ++l) {
+    const ConstraintBlock& blk = blocks[joints_[l]];
+    for (std::int32_t b : {blk.bodyA, blk.bodyB}) {
+      if (b == staticBody || (b == blk.bodyB && blk.bodyA == blk.bodyB)) continue;
+      incidence_[incidenceStart_[b] + incidenceCount_[b]++] = l;
+    }
+  }
+}
+
+void IslandBlocks::clearIncidence() {
+  for (std::int32_t b : touched_) {
     incidenceStart_[b] = -1;
     bodyMark_[b] = -1;
   }
+  touched_.clear();
 }
 
 void IslandBlocks::prepareFactors() {
@@ -254,41 +286,63 @@ void IslandBlocks::factorAll(const std::vector<ConstraintBlock>& blocks,
 }
 
 // Reverse Cuthill-McKee over joints_ (neighbours: joints that share a
-// movable body), into order_.
+// movable body), into order_. Each joint's neighbours come from its
+// bodies' joint lists, so a chain or a ragdoll orders in linear time
+// (comparing every pair of joints was a tenth of a 50-link chain's step).
 void IslandBlocks::orderByProfile(const std::vector<ConstraintBlock>& blocks,
                                   std::int32_t staticBody) {
   const auto m = static_cast<std::int32_t>(joints_.size());
-  auto share = [&](std::int32_t l, std::int32_t k) {
-    const ConstraintBlock& p = blocks[joints_[l]];
-    const ConstraintBlock& q = blocks[joints_[k]];
-    return (p.bodyA != staticBody && (q.bodyA == p.bodyA || q.bodyB == p.bodyA)) ||
-           (p.bodyB != staticBody && (q.bodyA == p.bodyB || q.bodyB == p.bodyB));
+  collectIncidence(blocks, staticBody);
+  // Calls f(k) once for each joint k sharing a movable body with joint l.
+  // neighbourMark_ (one stamp per l) keeps a joint that shares both of
+  // l's bodies from counting twice.
+  neighbourMark_.assign(m, -1);
+  auto forNeighbours = [&](std::int32_t l, auto&& f) {
+    const ConstraintBlock& blk = blocks[joints_[l]];
+    for (std::int32_t b : {blk.bodyA, blk.bodyB}) {
+      if (b == staticBody || (b == blk.bodyB && blk.bodyA == blk.bodyB)) continue;
+      for (std::int32_t i = incidenceStart_[b]; i < incidenceStart_[b] + incidenceCount_[b]; ++i) {
+        const std::int32_t k = incidence_[i];
+        if (k == l || neighbourMark_[k] == l) continue;
+        neighbourMark_[k] = l;
+        f(k);
+      }
+    }
   };
-  // Degree of a joint: the joints it shares a body with (m is small: the
-  // island has at most maxRows rows).
+  // Degree of a joint: the joints it shares a body with.
   queue_.assign(m, 0);
   visited_.assign(m, 0);
   blockStart_.assign(m, 0);
   std::vector<std::int32_t>& degree = blockStart_;  // reused before the starts are set
   for (std::int32_t l = 0; l < m; ++l)
-    for (std::int32_t k = 0; k < m; ++k)
-      if (k != l && share(l, k)) ++degree[l];
-  std::int32_t head = 0, tail = 0;
+    forNeighbours(l, [&](std::int32_t) { ++degree[l]; });
+  // Each part starts from its joint of least degree (the first such).
+  byDegree_.resize(m);
+  for (std::int32_t l = 0; l < m; ++l)
+    byDegree_[l] = l;
+  std::stable_sort(byDegree_.begin(), byDegree_.end(),
+                   [&](std::int32_t p, std::int32_t q) { return degree[p] < degree[q]; });
+  neighbourMark_.assign(m, -1);
+  std::int32_t head = 0, tail = 0, nextStart = 0;
   while (tail < m) {
-    std::int32_t startAt = -1;
-    for (std::int32_t l = 0; l < m; ++l)
-      if (!visited_[l] && (startAt < 0 || degree[l] < degree[startAt])) startAt = l;
+    while (visited_[byDegree_[nextStart]])
+      ++nextStart;
+    const std::int32_t startAt = byDegree_[nextStart];
     visited_[startAt] = 1;
     queue_[tail++] = startAt;
     while (head < tail) {
       const std::int32_t l = queue_[head++];
-      for (std::int32_t k = 0; k < m; ++k) {
-        if (visited_[k] || !share(l, k)) continue;
+      // Breadth first, each joint's new neighbours in index order.
+      const std::int32_t added = tail;
+      forNeighbours(l, [&](std::int32_t k) {
+        if (visited_[k]) return;
         visited_[k] = 1;
         queue_[tail++] = k;
-      }
+      });
+      std::sort(queue_.begin() + added, queue_.begin() + tail);
     }
   }
+  clearIncidence();
   order_.assign(queue_.rbegin(), queue_.rend());
 }
 

@@ -161,6 +161,12 @@ class IslandBlocks {
     double effMass = 0.0;  // 1 / (Schur complement + gamma)
   };
 
+  // Whether select() was last called with the same structure (bodies,
+  // rows and islands of every block): its choice then stands. Keeps this
+  // call's structure for the next.
+  bool sameAsLastSelection(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
+                           const std::vector<std::int32_t>& islandStart, int islandCount,
+                           int maxRows, bool cutIntoChains);
   // The joint blocks of an island that have equality rows, into joints_.
   void collectJoints(int island, const std::vector<ConstraintBlock>& blocks,
                      const std::vector<std::int32_t>& islandStart);
@@ -170,6 +176,11 @@ class IslandBlocks {
   // A large island cut into chains, each a group.
   void addChains(int maxRows, const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
                  const std::vector<Vec3>* positions);
+  // Each movable body's joints (indices into joints_), as compressed
+  // lists: incidence_[incidenceStart_[b] ..][incidenceCount_[b]]; the
+  // bodies set are in touched_, and clearIncidence() unsets them.
+  void collectIncidence(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody);
+  void clearIncidence();
   // Reverse Cuthill-McKee over joints_, into order_.
   void orderByProfile(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody);
   // A new group of the joints in order_ (indices into joints_), laid out
@@ -212,6 +223,8 @@ class IslandBlocks {
   // Chain scratch: each body's joints, the chain a body is in, the
   // chain's part grown from its seed's first body.
   std::vector<std::int32_t> incidenceStart_, incidenceCount_, incidence_, bodyMark_, chainFront_;
+  std::vector<std::int32_t> touched_, neighbourMark_, byDegree_;
+  std::vector<std::int32_t> signature_, lastSignature_;  // sameAsLastSelection's
   std::vector<std::uint8_t> visited_;
 };
 

@@ -104,9 +104,12 @@ void RunawayGuard::begin(const std::vector<Body>& bodies,
     // What the forces alone would give over the step, from rest as much as
     // along the path: a body resting on a contact keeps some of the
     // velocity gravity gave it within the step.
-    start.freeGain = energyAt(b, b.linearVelocity + h * b.invMass * start.force,
-                              b.angularVelocity + h * (b.invInertiaWorld() * b.torque)) -
-                     start.energy;
+    // (Most bodies bear no torque: their world inertia is not needed.)
+    const Vec3 freeW = b.torque.isZero(0.0)
+                           ? b.angularVelocity
+                           : Vec3(b.angularVelocity + h * (b.invInertiaWorld() * b.torque));
+    start.freeGain =
+        energyAt(b, b.linearVelocity + h * b.invMass * start.force, freeW) - start.energy;
     Group& group = groups_[g];
     group.before += start.energy;
     group.explained += start.energy;

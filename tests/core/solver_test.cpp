@@ -498,6 +498,79 @@ TEST(Solver, IslandFactorGivesTheErrorsEnergy) {
   EXPECT_GT(std::abs(diagonals - expected), 0.005 * expected) << "the check tells them apart";
 }
 
+// A chain of 20 ball joints (60 rows) hanging from the static body, its
+// joints listed in a scrambled order: the island's rows are ordered along
+// the chain, so each joint's rows reach back only to the joint before
+// (6 + 15 x 19 = 291 factor entries; in the order given, 831), and one
+// solve leaves every residual at zero. The choice stands
+// while the structure does (the same entries again) and is made afresh
+// when a joint goes: broken in the middle, the two chains of 10 and 9
+// joints keep 141 + 126 entries.
+TEST(Solver, AnIslandOrdersAScrambledChainAlongItAndChoosesAgainWhenAJointGoes) {
+  constexpr int kJoints = 20;
+  const std::int32_t staticBody = kJoints;
+  std::vector<SolverBody> bodies(kJoints + 1);
+  for (int i = 0; i < kJoints; ++i) {
+    bodies[i].invMass = 1.0 / (0.1 + 0.05 * i);
+    bodies[i].invI = Vec3(50.0, 40.0 + i, 30.0).asDiagonal();
+    bodies[i].v = Vec3(0.1 * i, -0.05, 0.02 * (i % 3));
+    bodies[i].w = Vec3(0.2, -0.1 * (i % 2), 0.05 * i);
+  }
+  // Joint k holds body k - 1 (the static body for k = 0) to body k, at
+  // the point between them; listed as 7 k mod 20.
+  std::vector<ConstraintBlock> blocks;
+  std::vector<ConstraintRow> rows;
+  for (int listed = 0; listed < kJoints; ++listed) {
+    const int k = (7 * listed) % kJoints;
+    ConstraintBlock blk;
+    blk.bodyA = k == 0 ? staticBody : k - 1;
+    blk.bodyB = k;
+    blk.firstRow = static_cast<std::int32_t>(rows.size());
+    blk.equality = 3;
+    blk.joint = listed;
+    blocks.push_back(blk);
+    const Vec3 armA(0.0, 0.0, -0.05), armB(0.0, 0.0, 0.05);
+    for (int axis = 0; axis < 3; ++axis) {
+      ConstraintRow r;
+      const Vec3 u = Vec3::Unit(axis);
+      if (blk.bodyA != staticBody) {
+        r.linA = -u;
+        r.angA = -armA.cross(u);
+        r.invIangA = bodies[blk.bodyA].invI * r.angA;
+      }
+      r.linB = u;
+      r.angB = armB.cross(u);
+      r.invIangB = bodies[blk.bodyB].invI * r.angB;
+      r.gamma = 1e-4;
+      r.bias = 0.01 * (axis + 1);
+      rows.push_back(r);
+    }
+  }
+  const std::vector<std::int32_t> islandStart = {0, kJoints};
+  IslandBlocks islands;
+  islands.select(blocks, staticBody, islandStart, 1, 192);
+  ASSERT_TRUE(islands.covers(0));
+  EXPECT_EQ(islands.factorEntries(), 291u);
+  islands.factorAll(blocks, rows, bodies);
+  islands.solve(islands.groupsBegin(0), true, blocks, rows, bodies);
+  for (const ConstraintBlock& blk : blocks) {
+    for (int r = blk.firstRow; r < blk.firstRow + 3; ++r)
+      EXPECT_NEAR(rowResidual(rows[r], true, bodies[blk.bodyA], bodies[blk.bodyB]), 0.0, 1e-12)
+          << "joint " << blk.joint << " row " << r - blk.firstRow;
+  }
+  islands.select(blocks, staticBody, islandStart, 1, 192);
+  ASSERT_TRUE(islands.covers(0));
+  EXPECT_EQ(islands.factorEntries(), 291u);
+  // Joint 10 (listed 10th: 7 x 10 mod 20 = 10) breaks.
+  ASSERT_EQ(blocks[10].bodyB, 10);
+  blocks[10].equality = 0;
+  islands.select(blocks, staticBody, islandStart, 1, 192);
+  ASSERT_TRUE(islands.covers(0));
+  EXPECT_FALSE(islands.solvesEquality(10));
+  EXPECT_EQ(islands.coveredRows(), 57);
+  EXPECT_EQ(islands.factorEntries(), 141u + 126u);
+}
+
 // A 4 x 4 grid of bodies on ball joints (24 joints, 72 rows) with blocks
 // of at most 12 rows is cut into chains: its four rows and four columns of
 // three joints each, every joint in one chain, each chain's factor within
