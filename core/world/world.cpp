@@ -79,11 +79,14 @@ World::World() {
 
 namespace {
 // The axis of a finite rotation: zero or a finite direction, made unit.
-RotationUpdate checkedRotation(const RotationUpdate& r, const std::string& who) {
+// `who()` names the body, only when there is an error to name it in (the
+// adapter sets every body's rotation update at every step).
+template <class Who>
+RotationUpdate checkedRotation(const RotationUpdate& r, Who who) {
   RotationUpdate out = r;
-  if (!r.axis.allFinite()) throw Error(who + ": finite rotation axis must be finite");
+  if (!r.axis.allFinite()) throw Error(who() + ": finite rotation axis must be finite");
   const double n = r.axis.norm();
-  if (n > 0.0 && n < 1e-9) throw Error(who + ": finite rotation axis is too short");
+  if (n > 0.0 && n < 1e-9) throw Error(who() + ": finite rotation axis is too short");
   if (n > 0.0) out.axis /= n;
   return out;
 }
@@ -114,7 +117,7 @@ BodyId World::createBody(const BodyDesc& d) {
   b.linearDamping = d.linearDamping;
   b.angularDamping = d.angularDamping;
   b.maxAngularSpeed = d.maxAngularSpeed;
-  b.rotation = checkedRotation(d.rotation, who);
+  b.rotation = checkedRotation(d.rotation, [&] { return who; });
   if (d.type == BodyType::Dynamic) {
     b.mass = d.mass;
     b.invMass = 1.0 / d.mass;
@@ -234,7 +237,7 @@ void World::setDamping(BodyId id, double linear, double angular) {
 }
 
 void World::setRotationUpdate(BodyId id, const RotationUpdate& rotation) {
-  mutableBody(id).rotation = checkedRotation(rotation, bodyName(id));
+  mutableBody(id).rotation = checkedRotation(rotation, [id] { return bodyName(id); });
 }
 
 void World::setMaxAngularSpeed(BodyId id, double maxSpeed) {
