@@ -15,8 +15,9 @@ bool immovable(const SolverBody& b) {
 }
 
 // K_ij = J_i M^-1 J_j^T: the sum over the bodies both rows act on.
-double coupling(const ConstraintRow& ri, const ConstraintBlock& pi, const ConstraintRow& rj,
-                const ConstraintBlock& pj, const std::vector<SolverBody>& bodies) {
+[[gnu::always_inline]] inline double coupling(const ConstraintRow& ri, const ConstraintBlock& pi,
+                                              const ConstraintRow& rj, const ConstraintBlock& pj,
+                                              const std::vector<SolverBody>& bodies) {
   double k = 0.0;
   for (int sideI = 0; sideI < 2; ++sideI) {
     const std::int32_t body = sideI == 0 ? pi.bodyA : pi.bodyB;
@@ -267,7 +268,7 @@ void IslandBlocks::prepareFactors() {
   if (deltas_.size() < deltasSize_) deltas_.resize(deltasSize_);
   if (boundedStep_.size() < bounded_.size()) boundedStep_.resize(bounded_.size());
   if (solveScratch_.size() < entryRow_.size()) solveScratch_.resize(entryRow_.size());
-  if (factorScratch_.size() < 2 * entryRow_.size()) factorScratch_.resize(2 * entryRow_.size());
+  if (factorScratch_.size() < entryRow_.size()) factorScratch_.resize(entryRow_.size());
 }
 
 void IslandBlocks::factorOne(int k, const std::vector<ConstraintBlock>& blocks,
@@ -439,22 +440,25 @@ void IslandBlocks::factor(Group& g, const std::vector<ConstraintBlock>& blocks,
   // in a closed loop with CFM 0) leaves that direction to the other rows,
   // as the per-joint LDL^T does (ldlt.h).
   const double tiny = 1e-12 * (scale > 0.0 ? scale : 1.0);
-  double* D = &factorScratch_[2 * static_cast<std::size_t>(g.firstEntry)];
-  double* invD = D + n;
+  double* invD = &factorScratch_[static_cast<std::size_t>(g.firstEntry)];
   for (std::int32_t i = 0; i < n; ++i) {
     double* Li = F + base[i];
+    // Row i first holds t_ij = L_ij D_j, which the next columns need
+    // (t_ij = K_ij - sum_k t_ik L_jk), then L_ij = t_ij / D_j.
     for (std::int32_t j = first[i]; j < i; ++j) {
       const double* Lj = F + base[j];
-      double sum = Li[j];
+      double t = Li[j];
       for (std::int32_t k = std::max(first[i], first[j]); k < j; ++k)
-        sum -= Li[k] * Lj[k] * D[k];
-      Li[j] = sum * invD[j];
+        t -= Li[k] * Lj[k];
+      Li[j] = t;
     }
     double d = Li[i];
-    for (std::int32_t k = first[i]; k < i; ++k)
-      d -= Li[k] * Li[k] * D[k];
+    for (std::int32_t j = first[i]; j < i; ++j) {
+      const double l = Li[j] * invD[j];
+      d -= Li[j] * l;
+      Li[j] = l;
+    }
     const bool pivotOk = d > tiny;
-    D[i] = pivotOk ? d : 0.0;
     invD[i] = pivotOk ? 1.0 / d : 0.0;
   }
   for (std::int32_t i = 0; i < n; ++i)
@@ -519,7 +523,7 @@ void IslandBlocks::coupleBounded(const Group& isl, const std::vector<ConstraintB
     double kbb = rowDiagonal(row, bodies[blk.bodyA], bodies[blk.bodyB]);
     double uKu = 0.0;
     // u is kept beside w only long enough to form u . K^-1 u.
-    double* u = &factorScratch_[2 * static_cast<std::size_t>(isl.firstEntry)];
+    double* u = &factorScratch_[static_cast<std::size_t>(isl.firstEntry)];
     std::copy(w, w + n, u);
     solveInPlace(isl, w);
     for (std::int32_t i = 0; i < n; ++i) {

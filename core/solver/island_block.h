@@ -208,7 +208,7 @@ class IslandBlocks {
   std::vector<double> factor_;         // L left of the diagonal, 1/D on it (row profiles)
   std::vector<double> rhs_;            // the guard's scratch (one island at a time)
   std::vector<double> solveScratch_;   // per covered row: solve()'s right side, by group
-  std::vector<double> factorScratch_;  // two per covered row: factor()'s D, 1/D, then u
+  std::vector<double> factorScratch_;  // per covered row: factor()'s 1/D, coupleBounded's u
   std::size_t factorSize_ = 0;
   std::vector<BoundedRow> bounded_;
   std::vector<double> weights_;
