@@ -465,6 +465,23 @@ void IslandBlocks::factor(Group& g, const std::vector<ConstraintBlock>& blocks,
     F[base[i] + i] = invD[i];
 }
 
+double IslandBlocks::inverseQuadraticInPlace(const Group& g, double* x) const {
+  const std::int32_t n = g.size;
+  const double* F = &factor_[g.factor];
+  const std::int32_t* first = &first_[g.firstEntry];
+  const std::size_t* base = &rowBase_[g.firstEntry];
+  double sum = 0.0;
+  for (std::int32_t i = 0; i < n; ++i) {
+    const double* Li = F + base[i];
+    double xi = x[i];
+    for (std::int32_t k = first[i]; k < i; ++k)
+      xi -= Li[k] * x[k];
+    x[i] = xi;
+    sum += xi * xi * Li[i];  // 1/D on the diagonal (0 for a dropped pivot)
+  }
+  return sum;
+}
+
 void IslandBlocks::solveInPlace(const Group& g, double* x) const {
   const std::int32_t n = g.size;
   const double* F = &factor_[g.factor];

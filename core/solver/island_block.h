@@ -123,11 +123,7 @@ class IslandBlocks {
     double* x = rhs_.data();
     for (std::int32_t k = 0; k < g.size; ++k)
       x[k] = speed(rows[entryRow_[g.firstEntry + k]], entryBlock_[g.firstEntry + k]);
-    solveInPlace(g, x);
-    double sum = 0.0;
-    for (std::int32_t k = 0; k < g.size; ++k)
-      sum += speed(rows[entryRow_[g.firstEntry + k]], entryBlock_[g.firstEntry + k]) * x[k];
-    return 0.5 * sum;
+    return 0.5 * inverseQuadraticInPlace(g, x);
   }
 
   // Equality rows covered in all (statistics).
@@ -190,6 +186,9 @@ class IslandBlocks {
               std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
   // x = K^-1 x with the group's factor.
   void solveInPlace(const Group& g, double* x) const;
+  // x^T K^-1 x, as y^T D^-1 y with y = L^-1 x (K = L D L^T): half a solve.
+  // Overwrites x with y.
+  double inverseQuadraticInPlace(const Group& g, double* x) const;
   // Each bounded row's w and effective mass, once the factor is made.
   void coupleBounded(const Group& g, const std::vector<ConstraintBlock>& blocks,
                      std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
