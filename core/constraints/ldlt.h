@@ -14,12 +14,16 @@
 
 namespace blockstep {
 
-using BlockMatrix = Eigen::Matrix<double, 6, 6>;
+// A block's matrix is n x n doubles, column-major (Eigen's order), packed:
+// a ball joint's takes 72 bytes, not a 6 x 6's 288.
+template <int N>
+using BlockMap = Eigen::Map<Eigen::Matrix<double, N, N>>;
 
 // The kernels take the size as a template argument so the compiler unrolls
 // them; ldltFactor/ldltSolve pick the kernel for a block's row count.
 template <int N>
-void ldltFactorFixed(BlockMatrix& a) {
+void ldltFactorFixed(double* data) {
+  BlockMap<N> a(data);
   double scale = 0.0;
   for (int i = 0; i < N; ++i)
     scale = std::max(scale, std::abs(a(i, i)));
@@ -45,7 +49,8 @@ void ldltFactorFixed(BlockMatrix& a) {
 
 // Solves (L D L^T) x = b with the factor from ldltFactorFixed; b is overwritten.
 template <int N>
-void ldltSolveFixed(const BlockMatrix& f, double* b) {
+void ldltSolveFixed(const double* data, double* b) {
+  const Eigen::Map<const Eigen::Matrix<double, N, N>> f(data);
   for (int i = 1; i < N; ++i)
     for (int k = 0; k < i; ++k)
       b[i] -= f(i, k) * b[k];
@@ -64,16 +69,17 @@ void ldltSolveFixed(const BlockMatrix& f, double* b) {
 // on each other as the substitutions' do: softcube's 6 x 6 solves took
 // 14% of its time.
 template <int N>
-void ldltInvertFixed(BlockMatrix& f) {
+void ldltInvertFixed(double* data) {
   Eigen::Matrix<double, N, N> inverse;
   for (int j = 0; j < N; ++j) {
     double e[N] = {};
     e[j] = 1.0;
-    ldltSolveFixed<N>(f, e);
+    ldltSolveFixed<N>(data, e);
     for (int i = 0; i < N; ++i)
       inverse(i, j) = e[i];
   }
-  f.template topLeftCorner<N, N>() = inverse;
+  BlockMap<N> out(data);
+  out = inverse;
 }
 
 // K^-1 of a symmetric 3 x 3 (its lower triangle given) by cofactors, in
@@ -84,7 +90,8 @@ void ldltInvertFixed(BlockMatrix& f) {
 // a sub-step that prepares its rows solves it twice (sweep and relax):
 // factor and substitutions were 8% of cloth32's time. Returns false, K
 // untouched, otherwise: LDL^T then leaves a redundant row to the others.
-inline bool invertSymmetric3(BlockMatrix& k) {
+inline bool invertSymmetric3(double* data) {
+  BlockMap<3> k(data);
   const double a = k(0, 0), b = k(1, 0), c = k(2, 0), d = k(1, 1), e = k(2, 1), f = k(2, 2);
   const double largest = std::max({a, d, f});
   if (!(std::min({a, d, f}) > 1e-6 * largest)) return false;
@@ -102,11 +109,12 @@ inline bool invertSymmetric3(BlockMatrix& k) {
   return true;
 }
 
-// b = M b for the leading N x N of M (an inverse from ldltInvertFixed).
+// b = M b (an inverse from ldltInvertFixed).
 template <int N>
-void multiplyFixed(const BlockMatrix& m, double* b) {
+void multiplyFixed(const double* data, double* b) {
+  const Eigen::Map<const Eigen::Matrix<double, N, N>> m(data);
   Eigen::Map<Eigen::Matrix<double, N, 1>> v(b);
-  const Eigen::Matrix<double, N, 1> x = m.template topLeftCorner<N, N>() * v;
+  const Eigen::Matrix<double, N, 1> x = m * v;
   v = x;
 }
 
@@ -132,19 +140,19 @@ void forBlockSize(int n, Kernel&& kernel) {
   }
 }
 
-inline void ldltFactor(BlockMatrix& a, int n) {
+inline void ldltFactor(double* a, int n) {
   forBlockSize(n, [&]<int N>() { ldltFactorFixed<N>(a); });
 }
 
-inline void ldltSolve(const BlockMatrix& f, int n, double* b) {
+inline void ldltSolve(const double* f, int n, double* b) {
   forBlockSize(n, [&]<int N>() { ldltSolveFixed<N>(f, b); });
 }
 
-inline void ldltInvert(BlockMatrix& f, int n) {
+inline void ldltInvert(double* f, int n) {
   forBlockSize(n, [&]<int N>() { ldltInvertFixed<N>(f); });
 }
 
-inline void multiplyBlock(const BlockMatrix& m, int n, double* b) {
+inline void multiplyBlock(const double* m, int n, double* b) {
   forBlockSize(n, [&]<int N>() { multiplyFixed<N>(m, b); });
 }
 

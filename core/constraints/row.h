@@ -98,11 +98,13 @@ struct ConstraintBlock {
   // Some equality row depends on the others (a zero pivot in ldl): the
   // block's solution leaves that row's residual to them.
   bool redundant = false;
-  // LDL^T of the equality block: unit lower L below the diagonal,
-  // 1/D on the diagonal (0 where the pivot vanished: a redundant row);
-  // or, once `inverted`, the matrix of its solve (ldltInvert).
-  Eigen::Matrix<double, 6, 6> ldl = Eigen::Matrix<double, 6, 6>::Zero();
-  bool factored = false;  // ldl holds this (sub-)step's factor of the block's own
+  // Where the equality block's matrix starts in the solver's pool
+  // (equality x equality doubles, ldlt.h): LDL^T, unit lower L below the
+  // diagonal, 1/D on the diagonal (0 where the pivot vanished: a
+  // redundant row); or, once `inverted`, the matrix of its solve
+  // (ldltInvert).
+  std::int32_t matrix = 0;
+  bool factored = false;  // the matrix holds this (sub-)step's factor of the block's own
   bool inverted = false;
   // c where the equality rows' spring is relative to the block's own
   // effective mass, Gamma = c K (Solver::blockSpringShare says why), the

@@ -27,11 +27,11 @@ constexpr int kInvertFromRows = 3;
 
 // x = K^-1 x for a block's own equality rows, from its factor or, once
 // inverted (ldltInvert, invertSymmetric3), by one product.
-void solveBlock(const ConstraintBlock& blk, double* x) {
+void solveBlock(const ConstraintBlock& blk, const double* matrix, double* x) {
   if (blk.inverted)
-    multiplyBlock(blk.ldl, blk.equality, x);
+    multiplyBlock(matrix, blk.equality, x);
   else
-    ldltSolve(blk.ldl, blk.equality, x);
+    ldltSolve(matrix, blk.equality, x);
 }
 
 // A speculative row's bias without restitution (a contact normal, a
@@ -388,6 +388,7 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     std::fill(turnStamp_.begin(), turnStamp_.end(), 0u);
     prepareStamp_ = 1;
   }
+  std::size_t matrixSize = 0;
   for (std::size_t bi = 0; bi < blockCount; ++bi) {
     // Room for the most rows a block can have; grows only while warming up.
     if (static_cast<int>(rows_.size()) < rowCount_ + kMaxJointSlots) {
@@ -404,7 +405,11 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
       buildContactBlock(in, s, h, contactIndex(source), blk);
     }
     rowCount_ += blk.rowCount();
+    blk.matrix = static_cast<std::int32_t>(matrixSize);
+    matrixSize += static_cast<std::size_t>(blk.equality) * blk.equality;
   }
+  // Grows only while warming up.
+  if (blockMatrices_.size() < matrixSize) blockMatrices_.resize(matrixSize);
   useIslandBlock_ = s.blockMode == BlockMode::Block && s.islandBlockRows > 1;
   if (useIslandBlock_) {
     // Islands and their joints stay the same over a step's sub-steps:
@@ -532,7 +537,7 @@ void Solver::carryRows(const StepInput& in, const SolverSettings& s, double h) {
     forEachIndex(static_cast<int>(blocks_.size()), [&](int bi) {
       ConstraintBlock& blk = blocks_[bi];
       if (blk.factored && !blk.inverted && blk.equality >= kInvertFromRows) {
-        ldltInvert(blk.ldl, blk.equality);
+        ldltInvert(matrixOf(blk), blk.equality);
         blk.inverted = true;
       }
     });
@@ -890,26 +895,29 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
   // reused by every sweep of this (sub-)step.
   const int ne = blk.equality;
   const ConstraintRow* eq = rows;
+  double* K = matrixOf(blk);  // column-major: K(r, col) at K[r + ne col]
+  const double scale = blk.springShare > 0.0 ? 1.0 + blk.springShare : 1.0;  // K + c K (gamma 0)
   for (int r = 0; r < ne; ++r) {
     for (int col = 0; col <= r; ++col) {
-      blk.ldl(r, col) = a.invMass * eq[r].linA.dot(eq[col].linA) +
+      K[r + ne * col] = a.invMass * eq[r].linA.dot(eq[col].linA) +
                         eq[r].angA.dot(eq[col].invIangA) +
                         b.invMass * eq[r].linB.dot(eq[col].linB) + eq[r].angB.dot(eq[col].invIangB);
     }
-    blk.ldl(r, r) += eq[r].gamma;
+    K[r + ne * r] += eq[r].gamma;
+    for (int col = 0; col <= r; ++col)
+      K[r + ne * col] *= scale;
   }
-  if (blk.springShare > 0.0) blk.ldl *= 1.0 + blk.springShare;  // K + c K (gamma is 0)
   blk.redundant = false;
   // A joint's 3 x 3 block (a ball joint's point) is inverted outright;
   // contact blocks keep the factor, whose zero pivots name the redundant
   // points (a 3-point manifold by cofactors left one heap of 100 hulls in
   // ConvexWorld's test still creeping at 9.7 mm/s after 8 s).
-  if (ne == 3 && !blk.unilateral && invertSymmetric3(blk.ldl)) {
+  if (ne == 3 && !blk.unilateral && invertSymmetric3(K)) {
     blk.inverted = true;
   } else {
-    ldltFactor(blk.ldl, ne);
+    ldltFactor(K, ne);
     for (int r = 0; r < ne; ++r)
-      blk.redundant = blk.redundant || blk.ldl(r, r) == 0.0;
+      blk.redundant = blk.redundant || K[r + ne * r] == 0.0;
   }
   if (s.blockMode == BlockMode::Block && !blk.unilateral) coupleBoundedRows(blk);
 }
@@ -937,7 +945,7 @@ void Solver::coupleBoundedRows(const ConstraintBlock& blk) {
       w[i] = -(a.invMass * eq[i].linA.dot(row.linA) + eq[i].angA.dot(row.invIangA) +
                b.invMass * eq[i].linB.dot(row.linB) + eq[i].angB.dot(row.invIangB));
     }
-    solveBlock(blk, w);
+    solveBlock(blk, matrixOf(blk), w);
     Vec3 linA = row.linA, linB = row.linB;
     c.dwA = row.invIangA;
     c.dwB = row.invIangB;
@@ -1032,7 +1040,7 @@ void Solver::solveEqualityBlock(ConstraintBlock& blk, bool useBias, SolverBody& 
   double dP[6];
   for (int i = 0; i < ne; ++i)
     dP[i] = relaxSkips(eq[i], useBias) ? 0.0 : -rowResidual(eq[i], useBias, a, b);
-  solveBlock(blk, dP);
+  solveBlock(blk, matrixOf(blk), dP);
   if (blk.springShare > 0.0) {  // Gamma = c K (blockSpringShare)
     const double impulseShare = blk.springShare / (1.0 + blk.springShare);
     for (int i = 0; i < ne; ++i)

@@ -167,6 +167,10 @@ class Solver {
   std::vector<Vec3> gyroOffset_;  // midpoint minus end angular velocity (gyroscopic)
   std::vector<ConstraintBlock> blocks_;
   std::vector<ConstraintRow> rows_;
+  // Each block's equality matrix (K, its factor or inverse), packed one
+  // after another (ConstraintBlock::matrix).
+  std::vector<double> blockMatrices_;
+  double* matrixOf(const ConstraintBlock& blk) { return blockMatrices_.data() + blk.matrix; }
   std::array<ConstraintRow, kMaxJointSlots> movedRows_;  // a joint's rows at the new pose
   IslandBlocks islandBlocks_;  // islands whose joint equality rows are one block
   // How a bounded row's impulse moves the bodies and its joint's equality

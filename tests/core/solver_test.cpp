@@ -1199,17 +1199,17 @@ TEST(Ldlt, InverseIsTheMatrixOfTheSolveOnRegularAndSingularBlocks) {
       A(i, j) = (i == j ? 2.0 : 0.0) + std::sin(1.0 + 7.0 * i * i + 3.0 * j);
   for (const bool singular : {false, true}) {
     if (singular) A.row(4) = A.row(1);
-    const BlockMatrix K = A * A.transpose();
-    BlockMatrix factor = K;
-    ldltFactor(factor, 6);
-    BlockMatrix inverse = factor;
-    ldltInvert(inverse, 6);
+    const Eigen::Matrix<double, 6, 6> K = A * A.transpose();
+    Eigen::Matrix<double, 6, 6> factor = K;
+    ldltFactor(factor.data(), 6);
+    Eigen::Matrix<double, 6, 6> inverse = factor;
+    ldltInvert(inverse.data(), 6);
     for (int trial = 0; trial < 3; ++trial) {
       double bySolve[6], byProduct[6];
       for (int i = 0; i < 6; ++i)
         bySolve[i] = byProduct[i] = std::cos(2.0 * i + trial);
-      ldltSolve(factor, 6, bySolve);
-      multiplyBlock(inverse, 6, byProduct);
+      ldltSolve(factor.data(), 6, bySolve);
+      multiplyBlock(inverse.data(), 6, byProduct);
       for (int i = 0; i < 6; ++i) {
         ASSERT_TRUE(std::isfinite(byProduct[i]));
         EXPECT_NEAR(byProduct[i], bySolve[i], 1e-9 * (1.0 + std::abs(bySolve[i])))
@@ -1217,7 +1217,7 @@ TEST(Ldlt, InverseIsTheMatrixOfTheSolveOnRegularAndSingularBlocks) {
       }
     }
     if (!singular) {
-      EXPECT_LT((K * inverse - BlockMatrix::Identity()).norm(), 1e-9);
+      EXPECT_LT((K * inverse - Eigen::Matrix<double, 6, 6>::Identity()).norm(), 1e-9);
     }
   }
 }
@@ -1227,22 +1227,22 @@ TEST(Ldlt, InverseIsTheMatrixOfTheSolveOnRegularAndSingularBlocks) {
 // triangle, and refuses a K whose LDL^T would find a redundant row (two
 // rows alike) or a diagonal far below the others, leaving K as it was.
 TEST(Ldlt, ClosedForm3x3InverseOrRefusal) {
-  BlockMatrix K = BlockMatrix::Zero();
-  K.topLeftCorner<3, 3>() << 1001.0, 0.3, -0.2, 0.3, 1.0, 0.05, -0.2, 0.05, 1001.0;
-  const Eigen::Matrix3d expected = K.topLeftCorner<3, 3>().inverse();
-  BlockMatrix lowerOnly = K;
+  Eigen::Matrix3d K;
+  K << 1001.0, 0.3, -0.2, 0.3, 1.0, 0.05, -0.2, 0.05, 1001.0;
+  const Eigen::Matrix3d expected = K.inverse();
+  Eigen::Matrix3d lowerOnly = K;
   lowerOnly(0, 1) = lowerOnly(0, 2) = lowerOnly(1, 2) = 99.0;  // never read
-  ASSERT_TRUE(invertSymmetric3(lowerOnly));
-  EXPECT_LT((lowerOnly.topLeftCorner<3, 3>() - expected).norm(), 1e-12 * expected.norm());
+  ASSERT_TRUE(invertSymmetric3(lowerOnly.data()));
+  EXPECT_LT((lowerOnly - expected).norm(), 1e-12 * expected.norm());
 
-  BlockMatrix singular = BlockMatrix::Zero();
-  singular.topLeftCorner<3, 3>() << 2.0, 2.0, 0.5, 2.0, 2.0, 0.5, 0.5, 0.5, 3.0;
-  const BlockMatrix before = singular;
-  EXPECT_FALSE(invertSymmetric3(singular));
+  Eigen::Matrix3d singular;
+  singular << 2.0, 2.0, 0.5, 2.0, 2.0, 0.5, 0.5, 0.5, 3.0;
+  const Eigen::Matrix3d before = singular;
+  EXPECT_FALSE(invertSymmetric3(singular.data()));
   EXPECT_EQ(singular, before);
-  BlockMatrix lopsided = BlockMatrix::Zero();
-  lopsided.topLeftCorner<3, 3>().diagonal() << 1.0, 1e-8, 1.0;
-  EXPECT_FALSE(invertSymmetric3(lopsided));
+  Eigen::Matrix3d lopsided = Eigen::Matrix3d::Zero();
+  lopsided.diagonal() << 1.0, 1e-8, 1.0;
+  EXPECT_FALSE(invertSymmetric3(lopsided.data()));
 }
 
 }  // namespace
