@@ -7,6 +7,7 @@
 #include <algorithm>
 
 #include "compare/native/scenes.h"
+#include "core/solver/island_block.h"
 
 namespace {
 
@@ -50,6 +51,80 @@ void runScene(benchmark::State& state, const char* name, SolverSettings settings
       ->Unit(benchmark::kMillisecond);                                                   \
   BENCHMARK_CAPTURE(runScene, scene##_substep20, #scene, SolverSettings::subStepped(20)) \
       ->Unit(benchmark::kMillisecond);
+
+// The island block's kernels alone: K of a chain of `joints` ball joints
+// (3 rows each, hanging from the static body) formed and factored within
+// its profile, and one solve with it (a sweep's), per (sub-)step. A star
+// (every joint on one hub body) is the dense case: its profile is the
+// whole lower triangle.
+struct IslandKernel {
+  std::vector<SolverBody> bodies;
+  std::vector<ConstraintBlock> blocks;
+  std::vector<ConstraintRow> rows;
+  std::int32_t staticBody = 0;
+  IslandBlocks islands;
+
+  IslandKernel(int joints, bool star) {
+    staticBody = joints + (star ? 1 : 0);
+    bodies.resize(staticBody + 1);
+    for (int i = 0; i < staticBody; ++i) {
+      bodies[i].invMass = 1.0 / (0.1 + 0.05 * i);
+      bodies[i].invI = Vec3(50.0, 40.0 + i, 30.0).asDiagonal();
+      bodies[i].v = Vec3(0.1 * i, -0.05, 0.02);
+    }
+    for (int k = 0; k < joints; ++k) {
+      ConstraintBlock blk;
+      blk.bodyA = star ? joints : (k == 0 ? staticBody : k - 1);
+      blk.bodyB = k;
+      blk.firstRow = static_cast<std::int32_t>(rows.size());
+      blk.equality = 3;
+      blk.joint = k;
+      blocks.push_back(blk);
+      const Vec3 armA(0.01 * k, 0.0, -0.05), armB(0.0, 0.0, 0.05);
+      for (int axis = 0; axis < 3; ++axis) {
+        ConstraintRow r;
+        const Vec3 u = Vec3::Unit(axis);
+        if (blk.bodyA != staticBody) {
+          r.linA = -u;
+          r.angA = -armA.cross(u);
+          r.invIangA = bodies[blk.bodyA].invI * r.angA;
+        }
+        r.linB = u;
+        r.angB = armB.cross(u);
+        r.invIangB = bodies[blk.bodyB].invI * r.angB;
+        r.gamma = 1e-4;
+        r.bias = 0.01 * (axis + 1);
+        rows.push_back(r);
+      }
+    }
+    islands.select(blocks, staticBody, {0, joints}, 1, 3 * joints);
+  }
+};
+
+void islandFactor(benchmark::State& state, bool star) {
+  IslandKernel k(static_cast<int>(state.range(0)), star);
+  for (auto _ : state) {
+    k.islands.factorAll(k.blocks, k.rows, k.bodies);
+    benchmark::DoNotOptimize(k.rows.data());
+  }
+  state.counters["rows"] = static_cast<double>(k.rows.size());
+  state.counters["factor_entries"] = static_cast<double>(k.islands.factorEntries());
+}
+
+void islandSolve(benchmark::State& state, bool star) {
+  IslandKernel k(static_cast<int>(state.range(0)), star);
+  k.islands.factorAll(k.blocks, k.rows, k.bodies);
+  for (auto _ : state) {
+    k.islands.solve(0, true, k.blocks, k.rows, k.bodies);
+    benchmark::DoNotOptimize(k.bodies.data());
+  }
+  state.counters["rows"] = static_cast<double>(k.rows.size());
+}
+
+BENCHMARK_CAPTURE(islandFactor, chain, false)->Arg(6)->Arg(16)->Arg(50);
+BENCHMARK_CAPTURE(islandSolve, chain, false)->Arg(6)->Arg(16)->Arg(50);
+BENCHMARK_CAPTURE(islandFactor, star, true)->Arg(6)->Arg(16);
+BENCHMARK_CAPTURE(islandSolve, star, true)->Arg(6)->Arg(16);
 
 SCENE_BENCH(ragdoll)
 SCENE_BENCH(chain)
