@@ -585,4 +585,32 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
   return r;
 }
 
+double sceneError(const RunResult& r, bool hasJoints) {
+  return hasJoints ? r.maxSeparation : r.drift;
+}
+
+Standing standing(const std::vector<RunResult>& results, const std::vector<Stepper>& steppers,
+                  bool hasJoints, bool withCollision) {
+  auto error = [hasJoints](const RunResult& r) { return sceneError(r, hasJoints); };
+  auto cost = [withCollision](const RunResult& r) {
+    return r.medianSolveMs + (withCollision ? r.medianCollideMs : 0.0);
+  };
+  Standing out;
+  for (std::size_t q = 0; q < results.size(); ++q) {
+    const RunResult& Q = results[q];
+    if (steppers[q].kind != Stepper::Kind::Quick || !Q.stoppedBecause.empty()) continue;
+    ++out.quick;
+    for (std::size_t b = 0; b < results.size(); ++b) {
+      const RunResult& B = results[b];
+      if (steppers[b].kind != Stepper::Kind::Block || !B.stoppedBecause.empty()) continue;
+      if (cost(B) <= cost(Q) && error(B) < error(Q) &&
+          B.lastSecondPenetration <= Q.lastSecondPenetration + 1e-4) {
+        ++out.beaten;
+        break;
+      }
+    }
+  }
+  return out;
+}
+
 }  // namespace blockstep::compare

@@ -124,6 +124,26 @@ struct RunResult {
   int poseStride = 0;
 };
 
+// The error a scene is judged by: joint separation, or for a stack of
+// boxes (no joints) how far its top box drifted.
+double sceneError(const RunResult& r, bool hasJoints);
+
+// How many quickstep runs some blockstep run beats at no more cost: lower
+// error (joint separation, or where the scene has no joints the top box's
+// drift) and settled contact no deeper (the last second's mean deepest
+// contact, 0.1 mm slack). Cost is the median solve time, or with
+// `withCollision` the solve and collision times together, the frame's
+// whole physics: a program that sub-steps quickstep collides every
+// sub-step, and blockstep colliding by itself every sub-step
+// (collision=substep) counts its collision apart from its solve too.
+// Runs that stopped early take no part.
+struct Standing {
+  int quick = 0;   // quickstep runs judged
+  int beaten = 0;  // of those, beaten by some blockstep run
+};
+Standing standing(const std::vector<RunResult>& results, const std::vector<Stepper>& steppers,
+                  bool hasJoints, bool withCollision);
+
 struct RunOptions {
   int frames = 300;
   double dt = 1.0 / 60.0;
