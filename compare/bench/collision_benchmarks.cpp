@@ -49,6 +49,41 @@ BENCHMARK_CAPTURE(broadPhase, sweep_and_prune, BroadPhaseMethod::SweepAndPrune)
     ->Arg(10000)
     ->Unit(benchmark::kMicrosecond);
 
+// A sheet of n x n boxes of 5 cm touching side by side in the x-y plane
+// (a cloth lying flat), with a ground plane: one axis alone leaves a whole
+// row of the sheet for each box to test.
+void broadPhaseSheet(benchmark::State& state, BroadPhaseMethod method) {
+  const int n = static_cast<int>(state.range(0));
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<double> jiggle(-0.0005, 0.0005);
+  std::vector<Shape> shapes;
+  std::vector<ShapePose> poses;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      shapes.push_back(Shape::box(0, Vec3(0.025, 0.025, 0.005)));
+      poses.push_back(ShapePose{Vec3(0.05 * i, 0.05 * j, 1.0), Mat3::Identity()});
+    }
+  }
+  shapes.push_back(Shape::plane(Vec3::UnitZ(), 0.0));
+  poses.push_back(ShapePose{Vec3::Zero(), Mat3::Identity()});
+  std::vector<Aabb> boxes(shapes.size());
+  std::vector<std::pair<int, int>> pairs;
+  BroadPhase phase;
+  for (auto _ : state) {
+    for (std::size_t i = 0; i < shapes.size(); ++i) {
+      if (i + 1 < shapes.size()) poses[i].position += Vec3(jiggle(rng), jiggle(rng), jiggle(rng));
+      boxes[i] = shapeAabb(shapes[i], poses[i], 0.01);
+    }
+    phase.findPairs(boxes, method, pairs);
+    benchmark::DoNotOptimize(pairs.data());
+  }
+  state.counters["pairs"] = static_cast<double>(pairs.size());
+}
+BENCHMARK_CAPTURE(broadPhaseSheet, sweep_and_prune, BroadPhaseMethod::SweepAndPrune)
+    ->Arg(32)
+    ->Arg(64)
+    ->Unit(benchmark::kMicrosecond);
+
 ShapePose at(const Vec3& p, double angle = 0.0) {
   // Turned about z only: face on face, the gap is the given one.
   return ShapePose{p, Quat(Eigen::AngleAxisd(angle, Vec3::UnitZ())).toRotationMatrix()};

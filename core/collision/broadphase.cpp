@@ -76,16 +76,42 @@ void BroadPhase::findPairs(const std::vector<Aabb>& boxes, BroadPhaseMethod meth
     }
     order_[j + 1] = moving;
   }
+  // The boxes in that order, side by side: the sweep reads each box's
+  // neighbours along x one after another (through order_ it took 5 ns a
+  // test, most of a cloth's collision).
+  sorted_.resize(n);
+  for (int k = 0; k < n; ++k)
+    sorted_[k] = boxes[order_[k]];
   for (int k = 0; k < n; ++k) {
-    const Aabb& a = boxes[order_[k]];
+    const Aabb& a = sorted_[k];
     if (!(a.lo.x() <= a.hi.x())) continue;  // empty: sorted last, overlaps nothing
-    for (int l = k + 1; l < n && boxes[order_[l]].lo.x() <= a.hi.x(); ++l) {
-      if (!a.overlaps(boxes[order_[l]])) continue;
+    for (int l = k + 1; l < n && sorted_[l].lo.x() <= a.hi.x(); ++l) {
+      const Aabb& b = sorted_[l];
+      // x overlaps already (b starts within a, and no earlier than a).
+      if (a.lo.y() > b.hi.y() || b.lo.y() > a.hi.y() || a.lo.z() > b.hi.z() || b.lo.z() > a.hi.z())
+        continue;
       const int i = order_[k], j = order_[l];
       pairs.emplace_back(std::min(i, j), std::max(i, j));
     }
   }
-  std::sort(pairs.begin(), pairs.end());
+  sortPairs(n, pairs);
+}
+
+// Counting sort by the first index, then each first index's few second
+// indices in place: the pairs in all-pairs order, in linear time.
+void BroadPhase::sortPairs(int n, std::vector<std::pair<int, int>>& pairs) {
+  pairStart_.assign(static_cast<std::size_t>(n) + 1, 0);
+  for (const auto& p : pairs)
+    ++pairStart_[p.first + 1];
+  for (int i = 0; i < n; ++i)
+    pairStart_[i + 1] += pairStart_[i];
+  sortedPairs_.resize(pairs.size());
+  pairFill_.assign(pairStart_.begin(), pairStart_.end() - 1);
+  for (const auto& p : pairs)
+    sortedPairs_[pairFill_[p.first]++] = p;
+  for (int i = 0; i < n; ++i)
+    std::sort(sortedPairs_.begin() + pairStart_[i], sortedPairs_.begin() + pairStart_[i + 1]);
+  pairs.swap(sortedPairs_);
 }
 
 }  // namespace blockstep

@@ -40,7 +40,12 @@ class BroadPhase {
                  std::vector<std::pair<int, int>>& pairs);
 
  private:
-  std::vector<int> order_;  // sweep and prune: box indices by lo.x, kept across calls
+  void sortPairs(int n, std::vector<std::pair<int, int>>& pairs);
+
+  std::vector<int> order_;    // sweep and prune: box indices by lo.x, kept across calls
+  std::vector<Aabb> sorted_;  // the boxes in that order (scratch)
+  std::vector<int> pairStart_, pairFill_;         // sortPairs' scratch
+  std::vector<std::pair<int, int>> sortedPairs_;  // sortPairs' scratch
 };
 
 }  // namespace blockstep
