@@ -632,8 +632,8 @@ TEST(CompareSceneFiles, BadFieldsAreNamed) {
 // slack). Quickstep 20 x 4 here solves in 1.0 ms but collides four times
 // (0.8 ms); blockstep solves in 1.2 ms and collides once (0.1 ms), settling
 // 0.05 mm deeper (within the slack): beaten counting the frame's whole
-// physics (1.3 against 1.8 ms), not counting the solve alone. A blockstep run that settles deeper, or stopped early,
-// beats nothing.
+// physics (1.3 against 1.8 ms), not counting the solve alone. A blockstep
+// run that settles deeper, or stopped early, beats nothing.
 TEST(CompareGrid, StandingCountsTheCheaperMoreAccurateRunsWithAndWithoutCollision) {
   auto run = [](double solve, double collide, double sep, double settled) {
     RunResult r;
