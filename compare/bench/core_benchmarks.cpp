@@ -8,6 +8,7 @@
 
 #include "compare/native/scenes.h"
 #include "core/solver/island_block.h"
+#include "tests/support/ball_joint_rows.h"
 
 namespace {
 
@@ -73,29 +74,9 @@ struct IslandKernel {
       bodies[i].v = Vec3(0.1 * i, -0.05, 0.02);
     }
     for (int k = 0; k < joints; ++k) {
-      ConstraintBlock blk;
-      blk.bodyA = star ? joints : (k == 0 ? staticBody : k - 1);
-      blk.bodyB = k;
-      blk.firstRow = static_cast<std::int32_t>(rows.size());
-      blk.equality = 3;
-      blk.joint = k;
-      blocks.push_back(blk);
-      const Vec3 armA(0.01 * k, 0.0, -0.05), armB(0.0, 0.0, 0.05);
-      for (int axis = 0; axis < 3; ++axis) {
-        ConstraintRow r;
-        const Vec3 u = Vec3::Unit(axis);
-        if (blk.bodyA != staticBody) {
-          r.linA = -u;
-          r.angA = -armA.cross(u);
-          r.invIangA = bodies[blk.bodyA].invI * r.angA;
-        }
-        r.linB = u;
-        r.angB = armB.cross(u);
-        r.invIangB = bodies[blk.bodyB].invI * r.angB;
-        r.gamma = 1e-4;
-        r.bias = 0.01 * (axis + 1);
-        rows.push_back(r);
-      }
+      test::addBallJointRows(bodies, staticBody, k, star ? joints : (k == 0 ? staticBody : k - 1),
+                             k, Vec3(0.01 * k, 0.0, -0.05), Vec3(0.0, 0.0, 0.05), 1e-4, blocks,
+                             rows);
     }
     islands.select(blocks, staticBody, {0, joints}, 1, 3 * joints);
   }

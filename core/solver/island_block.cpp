@@ -465,20 +465,26 @@ void IslandBlocks::factor(Group& g, const std::vector<ConstraintBlock>& blocks,
     F[base[i] + i] = invD[i];
 }
 
-double IslandBlocks::inverseQuadraticInPlace(const Group& g, double* x) const {
-  const std::int32_t n = g.size;
+void IslandBlocks::forwardSubstitute(const Group& g, double* x) const {
   const double* F = &factor_[g.factor];
   const std::int32_t* first = &first_[g.firstEntry];
   const std::size_t* base = &rowBase_[g.firstEntry];
-  double sum = 0.0;
-  for (std::int32_t i = 0; i < n; ++i) {
+  for (std::int32_t i = 0; i < g.size; ++i) {
     const double* Li = F + base[i];
     double xi = x[i];
     for (std::int32_t k = first[i]; k < i; ++k)
       xi -= Li[k] * x[k];
     x[i] = xi;
-    sum += xi * xi * Li[i];  // 1/D on the diagonal (0 for a dropped pivot)
   }
+}
+
+double IslandBlocks::inverseQuadraticInPlace(const Group& g, double* x) const {
+  forwardSubstitute(g, x);
+  const double* F = &factor_[g.factor];
+  const std::size_t* base = &rowBase_[g.firstEntry];
+  double sum = 0.0;
+  for (std::int32_t i = 0; i < g.size; ++i)
+    sum += x[i] * x[i] * F[base[i] + i];  // 1/D on the diagonal (0 for a dropped pivot)
   return sum;
 }
 
@@ -488,13 +494,7 @@ void IslandBlocks::solveInPlace(const Group& g, double* x) const {
   const std::int32_t* first = &first_[g.firstEntry];
   const std::size_t* base = &rowBase_[g.firstEntry];
   // L y = r, y *= 1/D, L^T x = y; each within the profile.
-  for (std::int32_t i = 0; i < n; ++i) {
-    const double* Li = F + base[i];
-    double xi = x[i];
-    for (std::int32_t k = first[i]; k < i; ++k)
-      xi -= Li[k] * x[k];
-    x[i] = xi;
-  }
+  forwardSubstitute(g, x);
   for (std::int32_t i = 0; i < n; ++i)
     x[i] *= F[base[i] + i];
   for (std::int32_t k = n - 1; k > 0; --k) {

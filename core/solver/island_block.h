@@ -184,6 +184,8 @@ class IslandBlocks {
   Group& addGroup(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody);
   void factor(Group& g, const std::vector<ConstraintBlock>& blocks,
               std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
+  // x = L^-1 x with the group's factor (K = L D L^T).
+  void forwardSubstitute(const Group& g, double* x) const;
   // x = K^-1 x with the group's factor.
   void solveInPlace(const Group& g, double* x) const;
   // x^T K^-1 x, as y^T D^-1 y with y = L^-1 x (K = L D L^T): half a solve.

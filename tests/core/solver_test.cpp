@@ -9,6 +9,7 @@
 #include "core/constraints/ldlt.h"
 #include "core/solver/island_block.h"
 #include "core/solver/row_ops.h"
+#include "support/ball_joint_rows.h"
 #include "support/test_world.h"
 
 namespace blockstep {
@@ -522,29 +523,8 @@ TEST(Solver, AnIslandOrdersAScrambledChainAlongItAndChoosesAgainWhenAJointGoes) 
   std::vector<ConstraintRow> rows;
   for (int listed = 0; listed < kJoints; ++listed) {
     const int k = (7 * listed) % kJoints;
-    ConstraintBlock blk;
-    blk.bodyA = k == 0 ? staticBody : k - 1;
-    blk.bodyB = k;
-    blk.firstRow = static_cast<std::int32_t>(rows.size());
-    blk.equality = 3;
-    blk.joint = listed;
-    blocks.push_back(blk);
-    const Vec3 armA(0.0, 0.0, -0.05), armB(0.0, 0.0, 0.05);
-    for (int axis = 0; axis < 3; ++axis) {
-      ConstraintRow r;
-      const Vec3 u = Vec3::Unit(axis);
-      if (blk.bodyA != staticBody) {
-        r.linA = -u;
-        r.angA = -armA.cross(u);
-        r.invIangA = bodies[blk.bodyA].invI * r.angA;
-      }
-      r.linB = u;
-      r.angB = armB.cross(u);
-      r.invIangB = bodies[blk.bodyB].invI * r.angB;
-      r.gamma = 1e-4;
-      r.bias = 0.01 * (axis + 1);
-      rows.push_back(r);
-    }
+    test::addBallJointRows(bodies, staticBody, listed, k == 0 ? staticBody : k - 1, k,
+                           Vec3(0.0, 0.0, -0.05), Vec3(0.0, 0.0, 0.05), 1e-4, blocks, rows);
   }
   const std::vector<std::int32_t> islandStart = {0, kJoints};
   IslandBlocks islands;
