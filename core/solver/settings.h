@@ -59,7 +59,10 @@ struct SolverSettings {
   // More sub-steps while a jointed body turns fast: a step runs as many
   // as keep the fastest turn of any body in a constrained island (its
   // peak over the last step's sub-steps) to at most this angle per
-  // sub-step, up to maxSubstepFactor times `substeps`. The rows are
+  // sub-step, up to maxSubstepFactor times `substeps`. A body held only
+  // by ball joints whose anchors lie on one line through its centre of
+  // mass (a capsule chain's link) counts only its turn across that line:
+  // its spin about it moves no anchor (Solver::noteLeverArms). The rows are
   // linear in the turn: a light link whipping at 240 rad/s turns 0.4 rad
   // in a 1/600 s sub-step and its joints open by r (1 - cos 0.4), 4 mm
   // at once. Rigid-row springs keep the stiffness of the nominal

@@ -126,15 +126,76 @@ int Solver::mostSubsteps(const SolverSettings& s) {
 int Solver::substepsFor(const SolverSettings& s, double h) const {
   const int nominal = std::max(1, s.substeps);
   if (s.maxTurnPerSubstep <= 0.0) return nominal;
-  const double wanted = std::ceil(lastPeakTurnRate_ * h / s.maxTurnPerSubstep);
+  const double wanted = std::ceil(lastPeakAnchorTurnRate_ * h / s.maxTurnPerSubstep);
   if (!(wanted > nominal)) return nominal;  // NaN too: the guard deals with it
   return static_cast<int>(std::min<double>(wanted, mostSubsteps(s)));
 }
 
-void Solver::notePeakTurnRate() {
+void Solver::notePeakTurnRate(const StepInput& in) {
   for (std::size_t i = 0; i < groupOfBody_.size(); ++i) {
-    if (groupOfBody_[i] >= 0 && groupOfBody_[i] < islandCount_)
-      peakTurnRate_ = std::max(peakTurnRate_, bodies_[i].w.squaredNorm());
+    if (groupOfBody_[i] < 0 || groupOfBody_[i] >= islandCount_) continue;
+    const Vec3& w = bodies_[i].w;
+    const double turn = w.squaredNorm();
+    peakTurnRate_ = std::max(peakTurnRate_, turn);
+    switch (leverArms_[i]) {
+      case LeverArms::None:
+        break;
+      case LeverArms::OnAxis: {
+        const double along = (in.bodies[i].orientation * leverAxis_[i]).dot(w);
+        peakAnchorTurnRate_ = std::max(peakAnchorTurnRate_, turn - along * along);
+        break;
+      }
+      case LeverArms::Any:
+        peakAnchorTurnRate_ = std::max(peakAnchorTurnRate_, turn);
+        break;
+    }
+  }
+}
+
+// What of each body's turn its rows see (notePeakTurnRate). A ball
+// joint's rows hold its anchor, and a turn of the body moves the anchor
+// by w x r: a turn about the line through the centre of mass and the
+// anchor moves it not at all, and the rows' linearization (the reason for
+// maxTurnPerSubstep) loses nothing to it. A body whose every joint is a
+// ball joint with its anchor on one such line (a capsule chain's link, a
+// hair segment) counts only the turn across that line; its spin about it,
+// which light capsules pick up from every glancing contact, does not ask
+// for sub-steps. Any other joint (its rows hold directions too) and any
+// contact (its point moves with the body) count the whole turn.
+void Solver::noteLeverArms(const StepInput& in) {
+  const std::size_t bodyCount = in.bodies.size();
+  leverArms_.assign(bodyCount, LeverArms::None);
+  leverAxis_.resize(bodyCount);
+  auto all = [&](BodyId i) {
+    if (i != kWorldBody) leverArms_[i] = LeverArms::Any;
+  };
+  auto lever = [&](BodyId i, const Vec3& r) {
+    if (i == kWorldBody || leverArms_[i] == LeverArms::Any) return;
+    const double length = r.norm();
+    if (length == 0.0) return;  // an anchor at the centre of mass: no turn moves it
+    if (leverArms_[i] == LeverArms::None) {
+      leverArms_[i] = LeverArms::OnAxis;
+      leverAxis_[i] = r / length;
+    } else if (r.cross(leverAxis_[i]).norm() > kOnAxis * length) {
+      leverArms_[i] = LeverArms::Any;
+    }
+  };
+  for (const std::int32_t source : active_) {
+    if (source < 0) {
+      const ContactManifold& m = in.contacts[contactIndex(source)];
+      all(m.bodyA);
+      all(m.bodyB);
+      continue;
+    }
+    const Joint& joint = in.joints[source];
+    const JointCommon& c = common(joint.desc);
+    if (std::holds_alternative<BallJointDesc>(joint.desc)) {
+      lever(c.bodyA, joint.frames.localAnchorA);
+      lever(c.bodyB, joint.frames.localAnchorB);
+    } else {
+      all(c.bodyA);
+      all(c.bodyB);
+    }
   }
 }
 
@@ -148,7 +209,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   const int substeps = substepsFor(s, in.h);
   const double h = in.h / substeps;
   nominalSubstep_ = in.h / std::max(1, s.substeps);
-  peakTurnRate_ = 0.0;
+  peakTurnRate_ = peakAnchorTurnRate_ = 0.0;
   stepSize_ = in.penetrationStep > 0.0 ? in.penetrationStep : in.h;
   firstFreshContact_ = in.firstFreshContact;
 
@@ -160,6 +221,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   stats.solveSeconds = 0.0;
 
   buildIslands(in);
+  if (s.maxTurnPerSubstep > 0.0 || s.maxTurnPerRefresh > 0.0) noteLeverArms(in);
   usePool(s);
   startX_.resize(in.bodies.size());
   startQ_.resize(in.bodies.size());
@@ -204,7 +266,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
             ? std::max(0.0, (s.timeBudget - seconds(start, Clock::now())) / (substeps - sub))
             : kNoBudget;
     stats.iterations += solve(s, sub, subBudget, stats);
-    if (s.maxTurnPerSubstep > 0.0 || s.maxTurnPerRefresh > 0.0) notePeakTurnRate();
+    if (s.maxTurnPerSubstep > 0.0 || s.maxTurnPerRefresh > 0.0) notePeakTurnRate(in);
     integratePositions(in, s, h);
     if (s.relaxIterations > 0 && s.relaxCancelsDrift) relaxAgainstDrift(in, h);
     relax(s, h);
@@ -218,6 +280,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   }
   stats.solveSeconds = seconds(substepsStart, Clock::now());
   lastPeakTurnRate_ = std::sqrt(peakTurnRate_);
+  lastPeakAnchorTurnRate_ = std::sqrt(peakAnchorTurnRate_);
   turnRateSeen_ = true;
   finish(in, stats);
   guard_.check(in.bodies, blocks_, islandStart_, islandCount_, s, stats);

@@ -74,8 +74,17 @@ class Solver {
   // This step's sub-steps: the nominal count, or more while the last
   // step's constrained bodies turned fast (maxTurnPerSubstep).
   int substepsFor(const SolverSettings& s, double h) const;
-  // The fastest turn of a body in a constrained island, after a sweep.
-  void notePeakTurnRate();
+  // The fastest turn of a body in a constrained island, after a sweep:
+  // the whole turn (carried rows) and the turn its joint anchors see
+  // (sub-step counts).
+  void notePeakTurnRate(const StepInput& in);
+  void noteLeverArms(const StepInput& in);
+  // Where a body's rows hold it (noteLeverArms): nowhere but its centre
+  // of mass, on one line through it (leverAxis_, body frame), anywhere.
+  enum class LeverArms : std::uint8_t { None, OnAxis, Any };
+  // An anchor is on the line when it is off it by less than this
+  // fraction of its distance from the centre of mass.
+  static constexpr double kOnAxis = 1e-6;
   // A row's softness as this step uses it (a StepSpring at the nominal
   // sub-step when the step runs more).
   Softness softnessOf(const Softness& soft, double h) const;
@@ -149,10 +158,15 @@ class Solver {
   bool islandBlocksSelected_ = false;  // chosen on the step's first sub-step
   // The rigid-row softness inside island blocks (prepare() says why).
   Softness islandRigid_;
-  double peakTurnRate_ = 0.0;      // rad/s: this step's, so far
+  double peakTurnRate_ = 0.0;      // (rad/s)^2: this step's, so far
   double lastPeakTurnRate_ = 0.0;  // rad/s: the last step's
-  bool turnRateSeen_ = false;      // a step has measured it (a first step has no history)
-  double nominalSubstep_ = 0.0;    // s: the step over the settings' sub-steps
+  // The same for the turn the joint anchors see (noteLeverArms).
+  double peakAnchorTurnRate_ = 0.0;
+  double lastPeakAnchorTurnRate_ = 0.0;
+  std::vector<LeverArms> leverArms_;
+  std::vector<Vec3> leverAxis_;
+  bool turnRateSeen_ = false;    // a step has measured it (a first step has no history)
+  double nominalSubstep_ = 0.0;  // s: the step over the settings' sub-steps
   void coupleBoundedRows(const ConstraintBlock& blk);
   void solveCoupledRow(int rowIndex, bool useBias, ConstraintRow* eq, int ne, SolverBody& a,
                        SolverBody& b);
