@@ -36,13 +36,16 @@ bool immovable(const SolverBody& b) {
 
 }  // namespace
 
-void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
-                          const std::vector<std::int32_t>& islandStart, int islandCount,
-                          int maxRows, bool cutIntoChains, const std::vector<Vec3>* positions) {
-  if (sameAsLastSelection(blocks, staticBody, islandStart, islandCount, maxRows, cutIntoChains))
+void IslandBlocks::selectIslands(const std::vector<ConstraintBlock>& blocks,
+                                 std::int32_t staticBody,
+                                 const std::vector<std::int32_t>& islandStart, int firstIsland,
+                                 int endIsland, int maxRows, bool cutIntoChains,
+                                 const std::vector<Vec3>* positions) {
+  if (sameAsLastSelection(blocks, staticBody, islandStart, firstIsland, endIsland, maxRows,
+                          cutIntoChains))
     return;
-  wholeIsland_.assign(islandCount, -1);
-  islandGroups_.assign(islandCount + 1, 0);
+  wholeIsland_.assign(endIsland, -1);
+  islandGroups_.assign(endIsland + 1, 0);
   groupOfBlock_.assign(blocks.size(), -1);
   groups_.clear();
   entryRow_.clear();
@@ -56,7 +59,7 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
   const auto bodySlots = static_cast<std::size_t>(staticBody) + 1;
   if (bodyLocal_.size() < bodySlots) bodyLocal_.resize(bodySlots);
   if (bodyFirst_.size() < bodySlots) bodyFirst_.resize(bodySlots);
-  for (int island = 0; island < islandCount; ++island) {
+  for (int island = firstIsland; island < endIsland; ++island) {
     islandGroups_[island] = static_cast<std::int32_t>(groups_.size());
     collectJoints(island, blocks, islandStart);
     int n = 0;
@@ -71,7 +74,7 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
     }
     // Otherwise the per-joint blocks and Gauss-Seidel take over.
   }
-  islandGroups_[islandCount] = static_cast<std::int32_t>(groups_.size());
+  islandGroups_[endIsland] = static_cast<std::int32_t>(groups_.size());
 }
 
 // What select() reads of the blocks, islands and settings, laid out one
@@ -80,11 +83,16 @@ void IslandBlocks::select(const std::vector<ConstraintBlock>& blocks, std::int32
 bool IslandBlocks::sameAsLastSelection(const std::vector<ConstraintBlock>& blocks,
                                        std::int32_t staticBody,
                                        const std::vector<std::int32_t>& islandStart,
-                                       int islandCount, int maxRows, bool cutIntoChains) {
+                                       int firstIsland, int endIsland, int maxRows,
+                                       bool cutIntoChains) {
   signature_.clear();
-  signature_.insert(signature_.end(), {staticBody, islandCount, maxRows, cutIntoChains ? 1 : 0});
-  signature_.insert(signature_.end(), islandStart.begin(), islandStart.begin() + islandCount + 1);
-  for (const ConstraintBlock& blk : blocks) {
+  signature_.insert(signature_.end(),
+                    {staticBody, firstIsland, endIsland, maxRows, cutIntoChains ? 1 : 0,
+                     static_cast<std::int32_t>(blocks.size())});
+  signature_.insert(signature_.end(), islandStart.begin() + firstIsland,
+                    islandStart.begin() + endIsland + 1);
+  for (std::int32_t bi = islandStart[firstIsland]; bi < islandStart[endIsland]; ++bi) {
+    const ConstraintBlock& blk = blocks[bi];
     signature_.insert(signature_.end(), {blk.bodyA, blk.bodyB, blk.firstRow, blk.equality,
                                          blk.bounded, blk.unilateral ? 1 : 0});
   }

@@ -70,7 +70,15 @@ class IslandBlocks {
   // none). Island i owns blocks [islandStart[i], islandStart[i+1]).
   void select(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
               const std::vector<std::int32_t>& islandStart, int islandCount, int maxRows,
-              bool cutIntoChains = false, const std::vector<Vec3>* positions = nullptr);
+              bool cutIntoChains = false, const std::vector<Vec3>* positions = nullptr) {
+    selectIslands(blocks, staticBody, islandStart, 0, islandCount, maxRows, cutIntoChains,
+                  positions);
+  }
+  // The same for islands [firstIsland, endIsland) only (the solver steps
+  // classes of islands apart); the others get none.
+  void selectIslands(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
+                     const std::vector<std::int32_t>& islandStart, int firstIsland, int endIsland,
+                     int maxRows, bool cutIntoChains, const std::vector<Vec3>* positions);
   // K of each chosen group and its LDL^T, once the rows are prepared
   // (Jacobians times M^-1, gamma).
   // Bounded rows with a mass-relative spring get their gamma here.
@@ -161,8 +169,8 @@ class IslandBlocks {
   // rows and islands of every block): its choice then stands. Keeps this
   // call's structure for the next.
   bool sameAsLastSelection(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
-                           const std::vector<std::int32_t>& islandStart, int islandCount,
-                           int maxRows, bool cutIntoChains);
+                           const std::vector<std::int32_t>& islandStart, int firstIsland,
+                           int endIsland, int maxRows, bool cutIntoChains);
   // The joint blocks of an island that have equality rows, into joints_.
   void collectJoints(int island, const std::vector<ConstraintBlock>& blocks,
                      const std::vector<std::int32_t>& islandStart);

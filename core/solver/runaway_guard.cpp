@@ -125,9 +125,9 @@ template <class F>
 void RunawayGuard::addOverRows(const std::vector<ConstraintBlock>& blocks,
                                const std::vector<ConstraintRow>& rows,
                                const std::vector<SolverBody>& bodies,
-                               const std::vector<std::int32_t>& groupStart, int islandCount,
-                               double Group::*sum, F f) {
-  for (int g = 0; g < islandCount; ++g) {
+                               const std::vector<std::int32_t>& groupStart, int firstIsland,
+                               int endIsland, double Group::*sum, F f) {
+  for (int g = firstIsland; g < endIsland; ++g) {
     double total = 0.0;
     for (std::int32_t bi = groupStart[g]; bi < groupStart[g + 1]; ++bi) {
       const ConstraintBlock& blk = blocks[bi];
@@ -144,10 +144,10 @@ template <class ErrorOf>
 void RunawayGuard::addErrorEnergy(const std::vector<ConstraintBlock>& blocks,
                                   const std::vector<ConstraintRow>& rows,
                                   const std::vector<SolverBody>& bodies,
-                                  const std::vector<std::int32_t>& groupStart, int islandCount,
-                                  double h, IslandBlocks* islands, double Group::*sum,
-                                  ErrorOf errorOf) {
-  for (int g = 0; g < islandCount; ++g) {
+                                  const std::vector<std::int32_t>& groupStart, int firstIsland,
+                                  int endIsland, double h, IslandBlocks* islands,
+                                  double Group::*sum, ErrorOf errorOf) {
+  for (int g = firstIsland; g < endIsland; ++g) {
     const bool exact = islands && islands->covers(g);
     double total = 0.0;
     for (std::int32_t bi = groupStart[g]; bi < groupStart[g + 1]; ++bi) {
@@ -173,19 +173,21 @@ void RunawayGuard::addErrorEnergy(const std::vector<ConstraintBlock>& blocks,
 void RunawayGuard::addCorrections(const std::vector<ConstraintBlock>& blocks,
                                   const std::vector<ConstraintRow>& rows,
                                   const std::vector<SolverBody>& bodies,
-                                  const std::vector<std::int32_t>& groupStart, int islandCount,
-                                  double h, IslandBlocks* islands) {
+                                  const std::vector<std::int32_t>& groupStart, int firstIsland,
+                                  int endIsland, double h, IslandBlocks* islands) {
   addErrorEnergy(
-      blocks, rows, bodies, groupStart, islandCount, h, islands, &Group::errorsBefore,
+      blocks, rows, bodies, groupStart, firstIsland, endIsland, h, islands, &Group::errorsBefore,
       [](const ConstraintRow& row, const SolverBody&, const SolverBody&) { return row.C; });
 }
 
 void RunawayGuard::addRemainingErrors(const std::vector<ConstraintBlock>& blocks,
                                       const std::vector<ConstraintRow>& rows,
                                       const std::vector<SolverBody>& bodies,
-                                      const std::vector<std::int32_t>& groupStart, int islandCount,
-                                      double hLast, double h, IslandBlocks* islands) {
-  addErrorEnergy(blocks, rows, bodies, groupStart, islandCount, h, islands, &Group::errorsAfter,
+                                      const std::vector<std::int32_t>& groupStart, int firstIsland,
+                                      int endIsland, double hLast, double h,
+                                      IslandBlocks* islands) {
+  addErrorEnergy(blocks, rows, bodies, groupStart, firstIsland, endIsland, h, islands,
+                 &Group::errorsAfter,
                  [hLast](const ConstraintRow& row, const SolverBody& a, const SolverBody& b) {
                    return row.C + hLast * rowVelocity(row, a, b);
                  });
@@ -194,8 +196,9 @@ void RunawayGuard::addRemainingErrors(const std::vector<ConstraintBlock>& blocks
 void RunawayGuard::addWork(const std::vector<ConstraintBlock>& blocks,
                            const std::vector<ConstraintRow>& rows,
                            const std::vector<SolverBody>& bodies,
-                           const std::vector<std::int32_t>& groupStart, int islandCount) {
-  addOverRows(blocks, rows, bodies, groupStart, islandCount, &Group::explained,
+                           const std::vector<std::int32_t>& groupStart, int firstIsland,
+                           int endIsland) {
+  addOverRows(blocks, rows, bodies, groupStart, firstIsland, endIsland, &Group::explained,
               [](const ConstraintRow& row, const SolverBody& a, const SolverBody& b) {
                 return std::abs(row.impulse) *
                        (std::abs(row.target) + std::abs(drivenBy(row, a, b)));

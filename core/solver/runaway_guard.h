@@ -68,25 +68,26 @@ class RunawayGuard {
   void begin(const std::vector<Body>& bodies, const std::vector<std::int32_t>& groupOfBody,
              int groups, const Vec3& gravity, double h);
   // The first sub-step's rows, once prepared: the errors they start with.
-  // Blocks [groupStart[g], groupStart[g + 1]) belong to island g.
+  // Blocks [groupStart[g], groupStart[g + 1]) belong to island g; these
+  // and the calls below count islands [firstIsland, endIsland).
   // Islands whose joint equality rows `islands` (if given) covers have
   // them measured exactly, 1/2 d^T K^-1 d with the island's factor.
   void addCorrections(const std::vector<ConstraintBlock>& blocks,
                       const std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies,
-                      const std::vector<std::int32_t>& groupStart, int islandCount, double h,
-                      IslandBlocks* islands);
+                      const std::vector<std::int32_t>& groupStart, int firstIsland, int endIsland,
+                      double h, IslandBlocks* islands);
   // After the last sub-step: the errors its rows leave, closed to first
   // order by the bodies' velocities over hLast (that sub-step's size).
   void addRemainingErrors(const std::vector<ConstraintBlock>& blocks,
                           const std::vector<ConstraintRow>& rows,
                           const std::vector<SolverBody>& bodies,
-                          const std::vector<std::int32_t>& groupStart, int islandCount,
-                          double hLast, double h, IslandBlocks* islands);
+                          const std::vector<std::int32_t>& groupStart, int firstIsland,
+                          int endIsland, double hLast, double h, IslandBlocks* islands);
   // After each (sub-)step's sweeps: the work its driving rows may have done.
   // Blocks [groupStart[g], groupStart[g + 1]) belong to island g.
   void addWork(const std::vector<ConstraintBlock>& blocks, const std::vector<ConstraintRow>& rows,
                const std::vector<SolverBody>& bodies, const std::vector<std::int32_t>& groupStart,
-               int islandCount);
+               int firstIsland, int endIsland);
   // After the step: the groups that ran away, into stats.runaways (and
   // their bodies and joints into stats.runawayBodies / runawayJoints).
   void check(const std::vector<Body>& bodies, const std::vector<ConstraintBlock>& blocks,
@@ -98,14 +99,14 @@ class RunawayGuard {
   template <class F>
   void addOverRows(const std::vector<ConstraintBlock>& blocks,
                    const std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies,
-                   const std::vector<std::int32_t>& groupStart, int islandCount, double Group::*sum,
-                   F f);
+                   const std::vector<std::int32_t>& groupStart, int firstIsland, int endIsland,
+                   double Group::*sum, F f);
   // The error energy of each island at the errors errorOf(row, a, b).
   template <class ErrorOf>
   void addErrorEnergy(const std::vector<ConstraintBlock>& blocks,
                       const std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies,
-                      const std::vector<std::int32_t>& groupStart, int islandCount, double h,
-                      IslandBlocks* islands, double Group::*sum, ErrorOf errorOf);
+                      const std::vector<std::int32_t>& groupStart, int firstIsland, int endIsland,
+                      double h, IslandBlocks* islands, double Group::*sum, ErrorOf errorOf);
   struct Group {
     double before = 0.0;        // kinetic energy before the step
     double explained = 0.0;     // E_free plus the rows' targets

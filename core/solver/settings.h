@@ -56,10 +56,11 @@ struct SolverSettings {
   // Sub-steps per step: each integrates velocities, prepares and factors
   // the blocks, warm starts, sweeps, integrates positions and relaxes.
   int substeps = 1;
-  // More sub-steps while a jointed body turns fast: a step runs as many
-  // as keep the fastest turn of any body in a constrained island (its
-  // peak over the last step's sub-steps) to at most this angle per
-  // sub-step, up to maxSubstepFactor times `substeps`. A body held only
+  // More sub-steps while a jointed body turns fast: each island runs as
+  // many as keep the fastest turn of any of its bodies (its island's peak
+  // over the last step's sub-steps) to at most this angle per sub-step,
+  // up to maxSubstepFactor times `substeps` (islands share no movable
+  // body and step apart, Solver::chooseClasses). A body held only
   // by ball joints whose anchors lie on one line through its centre of
   // mass (a capsule chain's link) counts only its turn across that line:
   // its spin about it moves no anchor (Solver::noteLeverArms). The rows are

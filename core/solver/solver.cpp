@@ -123,33 +123,39 @@ int Solver::mostSubsteps(const SolverSettings& s) {
   return std::min(SolverSettings::kMaxSubsteps, nominal * std::max(1, s.maxSubstepFactor));
 }
 
-int Solver::substepsFor(const SolverSettings& s, double h) const {
+int Solver::substepsAt(const SolverSettings& s, double h, double turnRate) {
   const int nominal = std::max(1, s.substeps);
   if (s.maxTurnPerSubstep <= 0.0) return nominal;
-  const double wanted = std::ceil(lastPeakAnchorTurnRate_ * h / s.maxTurnPerSubstep);
+  const double wanted = std::ceil(turnRate * h / s.maxTurnPerSubstep);
   if (!(wanted > nominal)) return nominal;  // NaN too: the guard deals with it
   return static_cast<int>(std::min<double>(wanted, mostSubsteps(s)));
 }
 
 void Solver::notePeakTurnRate(const StepInput& in) {
-  for (std::size_t i = 0; i < groupOfBody_.size(); ++i) {
-    if (groupOfBody_[i] < 0 || groupOfBody_[i] >= islandCount_) continue;
-    const Vec3& w = bodies_[i].w;
-    const double turn = w.squaredNorm();
-    peakTurnRate_ = std::max(peakTurnRate_, turn);
-    switch (leverArms_[i]) {
-      case LeverArms::None:
-        break;
-      case LeverArms::OnAxis: {
-        const double along = (in.bodies[i].orientation * leverAxis_[i]).dot(w);
-        peakAnchorTurnRate_ = std::max(peakAnchorTurnRate_, turn - along * along);
-        break;
-      }
-      case LeverArms::Any:
-        peakAnchorTurnRate_ = std::max(peakAnchorTurnRate_, turn);
-        break;
-    }
-  }
+  forEachBody(
+      static_cast<int>(in.bodies.size()),
+      [&](std::int32_t i) {
+        const std::int32_t island = groupOfBody_[i];
+        if (island < 0 || island >= islandCount_) return;
+        const Vec3& w = bodies_[i].w;
+        const double turn = w.squaredNorm();
+        peakTurnRate_ = std::max(peakTurnRate_, turn);
+        islandFullTurn_[island] = std::max(islandFullTurn_[island], turn);
+        double& seen = islandTurn_[island];
+        switch (leverArms_[i]) {
+          case LeverArms::None:
+            break;
+          case LeverArms::OnAxis: {
+            const double along = (in.bodies[i].orientation * leverAxis_[i]).dot(w);
+            seen = std::max(seen, turn - along * along);
+            break;
+          }
+          case LeverArms::Any:
+            seen = std::max(seen, turn);
+            break;
+        }
+      },
+      true);
 }
 
 // What of each body's turn its rows see (notePeakTurnRate). A ball
@@ -206,21 +212,19 @@ Softness Solver::softnessOf(const Softness& soft, double h) const {
 
 void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats) {
   const auto start = Clock::now();
-  const int substeps = substepsFor(s, in.h);
-  const double h = in.h / substeps;
   nominalSubstep_ = in.h / std::max(1, s.substeps);
-  peakTurnRate_ = peakAnchorTurnRate_ = 0.0;
+  peakTurnRate_ = 0.0;
   stepSize_ = in.penetrationStep > 0.0 ? in.penetrationStep : in.h;
   firstFreshContact_ = in.firstFreshContact;
 
-  stats.substeps = substeps;
+  stats.substeps = 0;
   stats.iterations = 0;
   stats.preparedSubsteps = 0;
   stats.residuals.clear();
   stats.brokenJoints.clear();
   stats.solveSeconds = 0.0;
 
-  buildIslands(in);
+  buildIslands(in, s);
   if (s.maxTurnPerSubstep > 0.0 || s.maxTurnPerRefresh > 0.0) noteLeverArms(in);
   usePool(s);
   startX_.resize(in.bodies.size());
@@ -239,12 +243,66 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     }
   }
 
+  const auto substepsStart = Clock::now();
+  rowCount_ = 0;
+  matrixCount_ = 0;
+  for (std::size_t c = 0; c < classes_.size(); ++c) {
+    useClass(c);
+    runSubsteps(in, s, classes_[c].substeps, start, stats);
+    stats.substeps = std::max(stats.substeps, classes_[c].substeps);
+  }
+  stats.solveSeconds = seconds(substepsStart, Clock::now());
+  turnRateSeen_ = true;
+  // Each body keeps its island's turns for the next step.
+  for (std::size_t i = 0; i < in.bodies.size(); ++i) {
+    const std::int32_t island = groupOfBody_[i];
+    const bool inIsland = island >= 0 && island < islandCount_;
+    bodyTurn_[i] = inIsland ? std::sqrt(islandTurn_[island]) : 0.0;
+    bodyFullTurn_[i] = inIsland ? std::sqrt(islandFullTurn_[island]) : 0.0;
+  }
+  useClass(kEveryClass);
+  finish(in, stats);
+  guard_.check(in.bodies, blocks_, islandStart_, islandCount_, s, stats);
+  stats.stepSeconds = seconds(start, Clock::now());
+}
+
+// The islands, blocks and bodies the stages work on: one class's, or
+// (kEveryClass) all of them.
+void Solver::useClass(std::size_t c) {
+  if (c == kEveryClass || classes_.size() == 1) {
+    islandBegin_ = 0;
+    islandEnd_ = islandCount_;
+    everyBody_ = true;
+  } else {
+    islandBegin_ = classes_[c].islandBegin;
+    islandEnd_ = classes_[c].islandEnd;
+    everyBody_ = false;
+    classBodyBegin_ = classBodyStart_[c];
+    classBodyEnd_ = classBodyStart_[c + 1];
+  }
+  blockBegin_ = islandStart_[islandBegin_];
+  blockEnd_ = islandStart_[islandEnd_];
+  rowBase_ = rowCount_;
+  matrixBase_ = matrixCount_;
+  // Its bodies' turn so far and in the last step (carriesRows).
+  peakTurnRate_ = 0.0;
+  lastTurnRate_ = 0.0;
+  for (int island = islandBegin_; island < islandEnd_; ++island)
+    lastTurnRate_ = std::max(lastTurnRate_, islandLastFullTurn_[island]);
+  islandBlocksInUse_ = c == kEveryClass ? 0 : c;
+  islandBlocksSelected_ = false;
+}
+
+// One class's sub-steps, each of h / substeps: integrate velocities,
+// prepare (or keep) the rows, warm start, sweep, integrate positions,
+// relax.
+void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int substeps,
+                         Clock::time_point start, StepStats& stats) {
+  const double h = in.h / substeps;
   // The guard's energy count costs a pass over the rows per sub-step;
   // without an energy limit only non-finite states and speeds are checked.
   const bool countEnergy = s.runawayEnergyGain > 0.0 && std::isfinite(s.runawayEnergyGain);
-  // The clock is read per sub-step only under a time budget: a two-body
-  // pendulum's step spent 6% of its time reading it twice a sub-step.
-  const auto substepsStart = Clock::now();
+  IslandBlocks* islands = nullptr;
   for (int sub = 0; sub < substeps; ++sub) {
     sinceStepStart_ = sub * h;
     integrateVelocities(in, s, h);
@@ -254,13 +312,16 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
       prepare(in, s, h);
       ++stats.preparedSubsteps;
     }
+    islands = useIslandBlock_ ? &islandBlocks() : nullptr;
     if (sub == 0 && countEnergy)
-      guard_.addCorrections(blocks_, rows_, bodies_, islandStart_, islandCount_, in.h,
-                            useIslandBlock_ ? &islandBlocks_ : nullptr);
+      guard_.addCorrections(blocks_, rows_, bodies_, islandStart_, islandBegin_, islandEnd_, in.h,
+                            islands);
     warmStart();
     // Each sub-step gets its share of what remains of the time budget;
     // once it is spent (prepare alone can spend it) a sub-step still runs
-    // one sweep. kNoBudget: no budget set.
+    // one sweep. kNoBudget: no budget set. (The clock is read per sub-step
+    // only under a budget: a two-body pendulum's step spent 6% of its time
+    // reading it twice a sub-step.)
     const double subBudget =
         s.timeBudget > 0.0
             ? std::max(0.0, (s.timeBudget - seconds(start, Clock::now())) / (substeps - sub))
@@ -271,23 +332,16 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     if (s.relaxIterations > 0 && s.relaxCancelsDrift) relaxAgainstDrift(in, h);
     relax(s, h);
     if (countEnergy) {
-      guard_.addWork(blocks_, rows_, bodies_, islandStart_, islandCount_);
+      guard_.addWork(blocks_, rows_, bodies_, islandStart_, islandBegin_, islandEnd_);
       if (sub == substeps - 1)
-        guard_.addRemainingErrors(blocks_, rows_, bodies_, islandStart_, islandCount_, h, in.h,
-                                  useIslandBlock_ ? &islandBlocks_ : nullptr);
+        guard_.addRemainingErrors(blocks_, rows_, bodies_, islandStart_, islandBegin_, islandEnd_,
+                                  h, in.h, islands);
     }
     storeImpulses(in, h);
   }
-  stats.solveSeconds = seconds(substepsStart, Clock::now());
-  lastPeakTurnRate_ = std::sqrt(peakTurnRate_);
-  lastPeakAnchorTurnRate_ = std::sqrt(peakAnchorTurnRate_);
-  turnRateSeen_ = true;
-  finish(in, stats);
-  guard_.check(in.bodies, blocks_, islandStart_, islandCount_, s, stats);
-  stats.stepSeconds = seconds(start, Clock::now());
 }
 
-void Solver::buildIslands(const StepInput& in) {
+void Solver::buildIslands(const StepInput& in, const SolverSettings& s) {
   const auto bodyCount = static_cast<std::int32_t>(in.bodies.size());
   dummy_ = bodyCount;
   bodies_.resize(bodyCount + 1);
@@ -347,6 +401,9 @@ void Solver::buildIslands(const StepInput& in) {
     if (islandOfRoot_[root] < 0) islandOfRoot_[root] = islandCount_++;
     sourceIsland_[k] = islandOfRoot_[root];
   }
+  chooseClasses(in, s, [&](std::int32_t i) {
+    return dynamicBody(i) ? islandOfRoot_[find(i)] : std::int32_t{-1};
+  });
   islandStart_.assign(islandCount_ + 1, 0);
   for (std::int32_t island : sourceIsland_)
     ++islandStart_[island + 1];
@@ -374,10 +431,135 @@ void Solver::buildIslands(const StepInput& in) {
     const std::int32_t island = islandOfRoot_[find(i)];
     groupOfBody_[i] = island >= 0 ? island : groupCount_++;
   }
+  islandTurn_.assign(islandCount_, 0.0);
+  islandFullTurn_.assign(islandCount_, 0.0);
+  if (classes_.size() > 1) {
+    // Each class's bodies, one list after another: its islands' bodies;
+    // the first class also moves the dynamic bodies in no island, and
+    // every class sets up the bodies that do not move (its rows may hold
+    // to them).
+    const auto classCount = static_cast<std::int32_t>(classes_.size());
+    classBodyStart_.assign(classCount + 1, 0);
+    auto classOf = [&](std::int32_t i) {  // -1: every class's
+      const std::int32_t island = groupOfBody_[i];
+      if (island < 0) return std::int32_t{-1};
+      return island < islandCount_ ? classOfIsland_[island] : std::int32_t{0};
+    };
+    std::int32_t everyClass = 0;
+    for (std::int32_t i = 0; i < bodyCount; ++i) {
+      const std::int32_t c = classOf(i);
+      if (c < 0)
+        ++everyClass;
+      else
+        ++classBodyStart_[c + 1];
+    }
+    for (std::int32_t c = 0; c < classCount; ++c)
+      classBodyStart_[c + 1] += classBodyStart_[c] + everyClass;
+    classBodies_.resize(classBodyStart_[classCount]);
+    fill_.assign(classBodyStart_.begin(), classBodyStart_.end() - 1);
+    for (std::int32_t i = 0; i < bodyCount; ++i) {
+      const std::int32_t c = classOf(i);
+      if (c >= 0) {
+        classBodies_[fill_[c]++] = i;
+        continue;
+      }
+      for (std::int32_t k = 0; k < classCount; ++k)
+        classBodies_[fill_[k]++] = i;
+    }
+  }
+}
+
+// Islands step apart (they share no movable body), so each may take the
+// sub-steps its own turn asks for (maxTurnPerSubstep): one fast island no
+// longer makes every other take its count (hair's 64 strands took 13.9
+// sub-steps a step under the fastest strand's count, 10.4 under their
+// own). Islands that take the same count form a class; the classes are
+// stepped one after another, each island numbered within its class.
+// One class (every island at one count, as before) when the step has a
+// time budget (it is shared across sub-steps), records residuals (per
+// sub-step of the whole world) or moves kinematic bodies (each class
+// would move them again).
+template <class IslandOf>
+void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandOf islandOf) {
+  const auto bodyCount = static_cast<std::int32_t>(in.bodies.size());
+  islandLastTurn_.assign(islandCount_, 0.0);
+  islandLastFullTurn_.assign(islandCount_, 0.0);
+  if (bodyTurn_.size() < in.bodies.size()) {
+    bodyTurn_.resize(in.bodies.size(), 0.0);
+    bodyFullTurn_.resize(in.bodies.size(), 0.0);
+  }
+  bool classesAllowed = s.timeBudget <= 0.0 && !s.recordResiduals && s.maxTurnPerSubstep > 0.0;
+  for (std::int32_t i = 0; i < bodyCount; ++i) {
+    const Body& b = in.bodies[i];
+    if (b.alive && b.type == BodyType::Kinematic) classesAllowed = false;
+    const std::int32_t island = islandOf(i);
+    if (island < 0) continue;
+    islandLastTurn_[island] = std::max(islandLastTurn_[island], bodyTurn_[i]);
+    islandLastFullTurn_[island] = std::max(islandLastFullTurn_[island], bodyFullTurn_[i]);
+  }
+  classes_.clear();
+  classOfIsland_.resize(islandCount_);
+  int most = substepsAt(s, in.h, 0.0);
+  for (int k = 0; k < islandCount_; ++k) {
+    classOfIsland_[k] = substepsAt(s, in.h, islandLastTurn_[k]);
+    most = std::max(most, classOfIsland_[k]);
+  }
+  // classOfIsland_ holds each island's count for now. Classes pay when
+  // they save a good part of the step's block sub-steps: each class's
+  // sub-steps go over every stage, and a pile of small islands, one of
+  // them a little faster, gained nothing from them.
+  double together = 0.0, apart = 0.0;
+  if (classesAllowed) {
+    for (const std::int32_t island : sourceIsland_) {
+      together += most;
+      apart += classOfIsland_[island];
+    }
+  }
+  if (!classesAllowed || !(apart < (1.0 - kClassSaving) * together)) {
+    classes_.push_back({most, 0, islandCount_});
+    std::fill(classOfIsland_.begin(), classOfIsland_.end(), 0);
+  } else {
+    // The counts in increasing order, each a class; islands renumbered
+    // class by class, in their order within it.
+    countOfClass_.assign(classOfIsland_.begin(), classOfIsland_.end());
+    std::sort(countOfClass_.begin(), countOfClass_.end());
+    countOfClass_.erase(std::unique(countOfClass_.begin(), countOfClass_.end()),
+                        countOfClass_.end());
+    for (int k = 0; k < islandCount_; ++k) {
+      classOfIsland_[k] = static_cast<std::int32_t>(
+          std::lower_bound(countOfClass_.begin(), countOfClass_.end(), classOfIsland_[k]) -
+          countOfClass_.begin());
+    }
+    const auto classCount = countOfClass_.size();
+    fill_.assign(classCount + 1, 0);
+    for (int k = 0; k < islandCount_; ++k)
+      ++fill_[classOfIsland_[k] + 1];
+    for (std::size_t c = 0; c < classCount; ++c) {
+      classes_.push_back({countOfClass_[c], fill_[c], fill_[c] + fill_[c + 1]});
+      fill_[c + 1] += fill_[c];
+    }
+    renumbered_.resize(islandCount_);
+    for (int k = 0; k < islandCount_; ++k)
+      renumbered_[k] = fill_[classOfIsland_[k]]++;
+    for (std::int32_t& island : sourceIsland_)
+      island = renumbered_[island];
+    // The last turns follow (islandLastTurn_ has served).
+    for (int k = 0; k < islandCount_; ++k)
+      islandLastTurn_[renumbered_[k]] = islandLastFullTurn_[k];
+    std::swap(islandLastTurn_, islandLastFullTurn_);
+    for (std::int32_t& island : islandOfRoot_) {
+      if (island >= 0) island = renumbered_[island];
+    }
+    for (std::size_t c = 0; c < classCount; ++c) {
+      for (int k = classes_[c].islandBegin; k < classes_[c].islandEnd; ++k)
+        classOfIsland_[k] = static_cast<std::int32_t>(c);
+    }
+  }
+  if (islandBlocksOf_.size() < classes_.size()) islandBlocksOf_.resize(classes_.size());
 }
 
 void Solver::integrateVelocities(const StepInput& in, const SolverSettings& s, double h) {
-  forEachIndex(static_cast<int>(in.bodies.size()), [&](int i) {
+  forEachBody(static_cast<int>(in.bodies.size()), [&](std::int32_t i) {
     Body& b = in.bodies[i];
     SolverBody& sb = bodies_[i];
     startV_[i] = b.linearVelocity;
@@ -440,9 +622,9 @@ void Solver::integrateVelocities(const StepInput& in, const SolverSettings& s, d
 }
 
 void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
-  const auto blockCount = sourceOfBlock_.size();
-  blocks_.resize(blockCount);
-  rowCount_ = 0;
+  blocks_.resize(sourceOfBlock_.size());
+  // This class's rows and matrices follow the classes stepped before it.
+  rowCount_ = rowBase_;
   if (turnStamp_.size() < in.bodies.size()) {  // grows only while warming up
     turnStamp_.resize(in.bodies.size(), 0);
     turnSinceStart_.resize(in.bodies.size());
@@ -451,8 +633,8 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     std::fill(turnStamp_.begin(), turnStamp_.end(), 0u);
     prepareStamp_ = 1;
   }
-  std::size_t matrixSize = 0;
-  for (std::size_t bi = 0; bi < blockCount; ++bi) {
+  std::size_t matrixSize = matrixBase_;
+  for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
     // Room for the most rows a block can have; grows only while warming up.
     if (static_cast<int>(rows_.size()) < rowCount_ + kMaxJointSlots) {
       rows_.resize(2 * (rowCount_ + kMaxJointSlots));
@@ -463,7 +645,7 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     const std::int32_t source = sourceOfBlock_[bi];
     if (source >= 0) {
       buildJointBlock(in, s, h, source, blk);
-      in.joints[source].block = static_cast<std::int32_t>(bi);
+      in.joints[source].block = bi;
     } else {
       buildContactBlock(in, s, h, contactIndex(source), blk);
     }
@@ -473,13 +655,14 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
   }
   // Grows only while warming up.
   if (blockMatrices_.size() < matrixSize) blockMatrices_.resize(matrixSize);
+  matrixCount_ = matrixSize;
   useIslandBlock_ = s.blockMode == BlockMode::Block && s.islandBlockRows > 1;
   if (useIslandBlock_) {
     // Islands and their joints stay the same over a step's sub-steps:
     // choose and order them once.
     if (!islandBlocksSelected_) {
-      islandBlocks_.select(blocks_, dummy_, islandStart_, islandCount_, s.islandBlockRows,
-                           s.chainBlocks, &startX_);
+      islandBlocks().selectIslands(blocks_, dummy_, islandStart_, islandBegin_, islandEnd_,
+                                   s.islandBlockRows, s.chainBlocks, &startX_);
       islandBlocksSelected_ = true;
     }
     if (s.rigidJointSoftness) {
@@ -490,11 +673,11 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
       // light link carrying a heavy load does not see: solved exactly, a
       // 0.1 kg chain holding 10 kg stretched 60 mm at 20 sub-steps.
       islandRigid_ = Softness::erpCfm(h * softnessOf(*s.rigidJointSoftness, h).biasRate(h), 0.0);
-      for (int island = 0; island < islandCount_; ++island) {
-        if (!islandBlocks_.covers(island)) continue;
+      for (int island = islandBegin_; island < islandEnd_; ++island) {
+        if (!islandBlocks().covers(island)) continue;
         for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
           ConstraintBlock& blk = blocks_[bi];
-          if (blk.unilateral || !islandBlocks_.solvesEquality(bi)) continue;
+          if (blk.unilateral || !islandBlocks().solvesEquality(bi)) continue;
           for (int i = 0; i < blk.equality; ++i) {
             ConstraintRow& row = rows_[blk.firstRow + i];
             if (row.softness == &*s.rigidJointSoftness) row.softness = &islandRigid_;
@@ -518,13 +701,17 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     preparedQ_.resize(in.bodies.size());
     movedX_.resize(in.bodies.size() + 1);
     movedQ_.resize(in.bodies.size() + 1);
-    for (std::size_t i = 0; i < in.bodies.size(); ++i) {
-      preparedX_[i] = in.bodies[i].position;
-      preparedQ_[i] = in.bodies[i].orientation;
-    }
-    for (int r = 0; r < rowCount_; ++r)
+    forEachBody(
+        static_cast<int>(in.bodies.size()),
+        [&](std::int32_t i) {
+          preparedX_[i] = in.bodies[i].position;
+          preparedQ_[i] = in.bodies[i].orientation;
+        },
+        true);
+    for (int r = rowBase_; r < rowCount_; ++r)
       preparedC_[r] = rows_[r].C;
-    for (const ConstraintBlock& blk : blocks_) {
+    for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
+      const ConstraintBlock& blk = blocks_[bi];
       const bool movingSurface =
           blk.contact >= 0 && in.contacts[blk.contact].surface.motionN != 0.0;
       const bool restitutive =
@@ -539,16 +726,17 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
       }
     }
   }
-  forEachIndex(static_cast<int>(blockCount), [&](int bi) {
-    const bool inIslandBlock = useIslandBlock_ && islandBlocks_.solvesEquality(bi);
-    finishBlock(s, h, blocks_[bi], inIslandBlock && islandBlocks_.covers(islandOfBlock_[bi]),
-                inIslandBlock, inIslandBlock && islandBlocks_.solvesBounded(islandOfBlock_[bi]));
+  forEachIndex(blockEnd_ - blockBegin_, [&](int k) {
+    const std::int32_t bi = blockBegin_ + k;
+    const bool inIslandBlock = useIslandBlock_ && islandBlocks().solvesEquality(bi);
+    finishBlock(s, h, blocks_[bi], inIslandBlock && islandBlocks().covers(islandOfBlock_[bi]),
+                inIslandBlock, inIslandBlock && islandBlocks().solvesBounded(islandOfBlock_[bi]));
   });
   if (useIslandBlock_) {
-    islandBlocks_.prepareFactors();
+    islandBlocks().prepareFactors();
     forEachIndex(
-        islandBlocks_.count(), [&](int k) { islandBlocks_.factorOne(k, blocks_, rows_, bodies_); },
-        1);
+        islandBlocks().count(),
+        [&](int k) { islandBlocks().factorOne(k, blocks_, rows_, bodies_); }, 1);
   }
 }
 
@@ -571,8 +759,8 @@ bool Solver::carriesRows(const SolverSettings& s, int sub, double h) {
     preparedAt_ = sub;
     return false;
   }
-  const double rate = std::sqrt(
-      std::max({peakTurnRate_, lastPeakTurnRate_ * lastPeakTurnRate_, kinematicTurnRate_}));
+  const double rate =
+      std::sqrt(std::max({peakTurnRate_, lastTurnRate_ * lastTurnRate_, kinematicTurnRate_}));
   if (!(rate * h * (sub - preparedAt_ + 1) < s.maxTurnPerRefresh)) {
     preparedAt_ = sub;
     return false;
@@ -587,8 +775,7 @@ bool Solver::carriesRows(const SolverSettings& s, int sub, double h) {
 void Solver::carryRows(const StepInput& in, const SolverSettings& s, double h) {
   // Each body's motion since the prepare: a move and a turn (world frame,
   // as the rows' Jacobians are); the dummy static body has none.
-  const int bodyCount = static_cast<int>(in.bodies.size());
-  forEachIndex(bodyCount, [&](int i) {
+  forEachBody(static_cast<int>(in.bodies.size()), [&](std::int32_t i) {
     movedX_[i] = in.bodies[i].position - preparedX_[i];
     movedQ_[i] = rotationBetween(preparedQ_[i], in.bodies[i].orientation);
   });
@@ -597,8 +784,8 @@ void Solver::carryRows(const StepInput& in, const SolverSettings& s, double h) {
   // sub-step that keeps them turns each into the matrix of its solve
   // (ldltInvert), one product a sweep instead of two substitutions.
   if (!factorsInverted_) {
-    forEachIndex(static_cast<int>(blocks_.size()), [&](int bi) {
-      ConstraintBlock& blk = blocks_[bi];
+    forEachIndex(blockEnd_ - blockBegin_, [&](int k) {
+      ConstraintBlock& blk = blocks_[blockBegin_ + k];
       if (blk.factored && !blk.inverted && blk.equality >= kInvertFromRows) {
         ldltInvert(matrixOf(blk), blk.equality);
         blk.inverted = true;
@@ -606,7 +793,8 @@ void Solver::carryRows(const StepInput& in, const SolverSettings& s, double h) {
     });
     factorsInverted_ = true;
   }
-  for (const ConstraintBlock& blk : blocks_) {
+  for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
+    const ConstraintBlock& blk = blocks_[bi];
     const Vec3& dxA = movedX_[blk.bodyA];
     const Vec3& dqA = movedQ_[blk.bodyA];
     const Vec3& dxB = movedX_[blk.bodyB];
@@ -1050,7 +1238,8 @@ void Solver::solveCoupledRow(int rowIndex, bool useBias, ConstraintRow* eq, int 
 }
 
 void Solver::warmStart() {
-  for (const ConstraintBlock& blk : blocks_) {
+  for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
+    const ConstraintBlock& blk = blocks_[bi];
     SolverBody& a = bodies_[blk.bodyA];
     SolverBody& b = bodies_[blk.bodyB];
     const ConstraintRow* rows = &rows_[blk.firstRow];
@@ -1061,7 +1250,7 @@ void Solver::warmStart() {
 }
 
 void Solver::sweep(int island, bool useBias, BlockMode mode) {
-  const bool islandBounded = useIslandBlock_ && islandBlocks_.solvesBounded(island);
+  const bool islandBounded = useIslandBlock_ && islandBlocks().solvesBounded(island);
   for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
     ConstraintBlock& blk = blocks_[bi];
     SolverBody& a = bodies_[blk.bodyA];
@@ -1079,7 +1268,7 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     }
     // The rigid block first, then limits and motors in its null space
     // (row.h says why).
-    if (!useIslandBlock_ || !islandBlocks_.solvesEquality(bi))
+    if (!useIslandBlock_ || !islandBlocks().solvesEquality(bi))
       solveEqualityBlock(blk, useBias, a, b);
     if (!islandBounded) {
       for (int i = blk.boundedBegin(); i < blk.boundedEnd(); ++i)
@@ -1089,10 +1278,10 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
   // The island's equality rows all at once (or chain by chain), then its
   // limits and motors in their null space (row.h says why).
   if (useIslandBlock_) {
-    for (int g = islandBlocks_.groupsBegin(island); g < islandBlocks_.groupsEnd(island); ++g)
-      islandBlocks_.solve(g, useBias, blocks_, rows_, bodies_);
+    for (int g = islandBlocks().groupsBegin(island); g < islandBlocks().groupsEnd(island); ++g)
+      islandBlocks().solve(g, useBias, blocks_, rows_, bodies_);
   }
-  if (islandBounded) islandBlocks_.solveBounded(island, useBias, blocks_, rows_, bodies_);
+  if (islandBounded) islandBlocks().solveBounded(island, useBias, blocks_, rows_, bodies_);
 }
 
 // Section 4.3: (J M^-1 J^T + c/h) dP = -(J v + b + gamma P) for the whole
@@ -1302,7 +1491,7 @@ void Solver::forRanges(int n, int grain, void* fn, void (*range)(void*, int, int
 
 void Solver::sweepIslands(bool useBias, BlockMode mode) {
   forEachIndex(
-      islandCount_, [&](int island) { sweep(island, useBias, mode); }, 1);
+      islandEnd_ - islandBegin_, [&](int k) { sweep(islandBegin_ + k, useBias, mode); }, 1);
 }
 
 int Solver::solve(const SolverSettings& s, int substep, double budget, StepStats& stats) {
@@ -1314,7 +1503,7 @@ int Solver::solve(const SolverSettings& s, int substep, double budget, StepStats
   int sweeps = 0;
   for (int it = 0; it < s.iterations; ++it) {
     if (!measure) {  // every island, every sweep: they may go at once
-      if (islandCount_ == 0) break;
+      if (islandEnd_ == islandBegin_) break;
       sweepIslands(true, s.blockMode);
       ++sweeps;
       if (budget != kNoBudget && seconds(start, Clock::now()) >= budget) break;
@@ -1323,7 +1512,7 @@ int Solver::solve(const SolverSettings& s, int substep, double budget, StepStats
     bool anyActive = false;
     double max = 0.0, sumSq = 0.0;
     int count = 0;
-    for (int island = 0; island < islandCount_; ++island) {
+    for (int island = islandBegin_; island < islandEnd_; ++island) {
       if (islandActive_[island]) {
         sweep(island, true, s.blockMode);
         anyActive = true;
@@ -1348,7 +1537,7 @@ int Solver::solve(const SolverSettings& s, int substep, double budget, StepStats
 
 void Solver::integratePositions(const StepInput& in, const SolverSettings& s, double h) {
   const bool explicitEuler = s.integrator == Integrator::ExplicitEuler;
-  forEachIndex(static_cast<int>(in.bodies.size()), [&](int i) {
+  forEachBody(static_cast<int>(in.bodies.size()), [&](std::int32_t i) {
     Body& b = in.bodies[i];
     if (!b.alive || b.type == BodyType::Static) return;
     if (b.isDynamic()) {
@@ -1400,7 +1589,8 @@ Quat Solver::turn(const Quat& q, const RotationUpdate& r, const Vec3& w, double 
 // correction as spin (a distorted chain's links spun up from 5 to 50
 // rad/s in one step).
 void Solver::relaxAgainstDrift(const StepInput& in, double h) {
-  for (const ConstraintBlock& blk : blocks_) {
+  for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
+    const ConstraintBlock& blk = blocks_[bi];
     if (blk.joint < 0 || blk.equality == 0) continue;
     const Joint& joint = in.joints[blk.joint];
     JointState state = joint.state;  // rows at a pose the step does not keep
@@ -1427,7 +1617,8 @@ void Solver::relax(const SolverSettings& s, double h) {
   // from the bodies' motion in each stage for the same reason).
   // One-sided rows are a manifold's normals and a joint's bounded rows
   // (limits): a joint's equality rows, most of a cloth's, are not read.
-  for (const ConstraintBlock& blk : blocks_) {
+  for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
+    const ConstraintBlock& blk = blocks_[bi];
     const SolverBody& a = bodies_[blk.bodyA];
     const SolverBody& b = bodies_[blk.bodyB];
     ConstraintRow* rows = &rows_[blk.firstRow];
@@ -1454,14 +1645,18 @@ void Solver::relax(const SolverSettings& s, double h) {
 void Solver::storeImpulses(const StepInput& in, double h) {
   // The relax sweeps changed velocities after the position update; the
   // bodies carry them into the next sub-step.
-  for (std::size_t i = 0; i < in.bodies.size(); ++i) {
-    Body& b = in.bodies[i];
-    if (b.alive && b.isDynamic()) {
-      b.linearVelocity = bodies_[i].v;
-      b.angularVelocity = bodies_[i].w;
-    }
-  }
-  for (const ConstraintBlock& blk : blocks_) {
+  forEachBody(
+      static_cast<int>(in.bodies.size()),
+      [&](std::int32_t i) {
+        Body& b = in.bodies[i];
+        if (b.alive && b.isDynamic()) {
+          b.linearVelocity = bodies_[i].v;
+          b.angularVelocity = bodies_[i].w;
+        }
+      },
+      true);
+  for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
+    const ConstraintBlock& blk = blocks_[bi];
     const ConstraintRow* rows = &rows_[blk.firstRow];
     if (blk.contact >= 0) {
       storeContactImpulses(in.contacts[blk.contact], rows, blk.rowCount(), h);

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -70,10 +71,17 @@ class Solver {
   static int mostSubsteps(const SolverSettings& s);
 
  private:
-  void buildIslands(const StepInput& in);
-  // This step's sub-steps: the nominal count, or more while the last
-  // step's constrained bodies turned fast (maxTurnPerSubstep).
-  int substepsFor(const SolverSettings& s, double h) const;
+  void buildIslands(const StepInput& in, const SolverSettings& s);
+  template <class IslandOf>
+  void chooseClasses(const StepInput& in, const SolverSettings& s, IslandOf islandOf);
+  static constexpr std::size_t kEveryClass = static_cast<std::size_t>(-1);
+  void useClass(std::size_t c);
+  using Clock = std::chrono::steady_clock;
+  void runSubsteps(const StepInput& in, const SolverSettings& s, int substeps,
+                   Clock::time_point start, StepStats& stats);
+  // An island's sub-steps: the nominal count, or more while it turned
+  // fast in the last step (maxTurnPerSubstep), at turnRate rad/s.
+  static int substepsAt(const SolverSettings& s, double h, double turnRate);
   // The fastest turn of a body in a constrained island, after a sweep:
   // the whole turn (carried rows) and the turn its joint anchors see
   // (sub-step counts).
@@ -151,6 +159,20 @@ class Solver {
     });
   }
   void forRanges(int n, int grain, void* fn, void (*range)(void*, int, int));
+  // f(i) for each body the class being stepped moves (useClass): every
+  // body, or the class's own; on the pool's threads unless `serial`.
+  template <class F>
+  void forEachBody(int bodyCount, F&& f, bool serial = false) {
+    const std::int32_t* list = everyBody_ ? nullptr : classBodies_.data() + classBodyBegin_;
+    const int n = everyBody_ ? bodyCount : classBodyEnd_ - classBodyBegin_;
+    auto body = [&](int k) { f(list ? list[k] : static_cast<std::int32_t>(k)); };
+    if (!serial) {
+      forEachIndex(n, body);
+      return;
+    }
+    for (int k = 0; k < n; ++k)
+      body(k);
+  }
   struct ThreadPool;
   std::shared_ptr<ThreadPool> pool_;   // kept while the thread count stays
   bool pooled_ = false;                // this step has more than one thread
@@ -158,11 +180,17 @@ class Solver {
   bool islandBlocksSelected_ = false;  // chosen on the step's first sub-step
   // The rigid-row softness inside island blocks (prepare() says why).
   Softness islandRigid_;
-  double peakTurnRate_ = 0.0;      // (rad/s)^2: this step's, so far
-  double lastPeakTurnRate_ = 0.0;  // rad/s: the last step's
-  // The same for the turn the joint anchors see (noteLeverArms).
-  double peakAnchorTurnRate_ = 0.0;
-  double lastPeakAnchorTurnRate_ = 0.0;
+  // The fastest whole turn of a body in the class being stepped
+  // ((rad/s)^2, this step's so far) and of its bodies' islands in the
+  // last step (rad/s).
+  double peakTurnRate_ = 0.0;
+  double lastTurnRate_ = 0.0;
+  // Per island, this step's fastest turn its joint anchors see
+  // ((rad/s)^2, noteLeverArms); per body, its island's in the last step
+  // (rad/s), and per island, the largest of its bodies' (rad/s).
+  std::vector<double> islandTurn_, bodyTurn_, islandLastTurn_;
+  // The same for the whole turn (carried rows).
+  std::vector<double> islandFullTurn_, bodyFullTurn_, islandLastFullTurn_;
   std::vector<LeverArms> leverArms_;
   std::vector<Vec3> leverAxis_;
   bool turnRateSeen_ = false;    // a step has measured it (a first step has no history)
@@ -186,7 +214,13 @@ class Solver {
   std::vector<double> blockMatrices_;
   double* matrixOf(const ConstraintBlock& blk) { return blockMatrices_.data() + blk.matrix; }
   std::array<ConstraintRow, kMaxJointSlots> movedRows_;  // a joint's rows at the new pose
-  IslandBlocks islandBlocks_;  // islands whose joint equality rows are one block
+  // Islands whose joint equality rows are one block: a selection per
+  // class (each keeps its choice while its structure stays), the one in
+  // use pointed at.
+  std::vector<IslandBlocks> islandBlocksOf_ = std::vector<IslandBlocks>(1);
+  std::size_t islandBlocksInUse_ = 0;
+  IslandBlocks& islandBlocks() { return islandBlocksOf_[islandBlocksInUse_]; }
+  const IslandBlocks& islandBlocks() const { return islandBlocksOf_[islandBlocksInUse_]; }
   // How a bounded row's impulse moves the bodies and its joint's equality
   // impulses when solved in the equality block's null space (solver.cpp,
   // coupleBoundedRows). Indexed like rows_; only bounded rows use it.
@@ -212,6 +246,26 @@ class Solver {
   std::vector<std::uint8_t> islandActive_;
   std::vector<std::int32_t> active_;
   int islandCount_ = 0;
+  // Classes of islands that take the same sub-steps (chooseClasses):
+  // class c owns islands [islandBegin, islandEnd) and bodies
+  // classBodies_[classBodyStart_[c], classBodyStart_[c + 1]).
+  struct SubstepClass {
+    int substeps = 1;
+    int islandBegin = 0, islandEnd = 0;
+  };
+  std::vector<SubstepClass> classes_;
+  // The least share of the step's block sub-steps classes must save.
+  static constexpr double kClassSaving = 0.2;
+  std::vector<std::int32_t> classOfIsland_, countOfClass_, renumbered_;
+  std::vector<std::int32_t> classBodies_, classBodyStart_;
+  // The class being stepped (useClass): its islands, blocks and bodies,
+  // and where its rows and block matrices start.
+  int islandBegin_ = 0, islandEnd_ = 0;
+  std::int32_t blockBegin_ = 0, blockEnd_ = 0;
+  bool everyBody_ = true;
+  std::int32_t classBodyBegin_ = 0, classBodyEnd_ = 0;
+  int rowBase_ = 0;
+  std::size_t matrixBase_ = 0, matrixCount_ = 0;
   // The runaway guard's groups: each body's island, or a group of its own
   // for a dynamic body in no island (-1: not dynamic).
   std::vector<std::int32_t> groupOfBody_;

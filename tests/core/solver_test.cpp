@@ -1068,6 +1068,58 @@ TEST(Solver, SpinAboutTheLineThroughABallJointsAnchorAsksForNoMoreSubsteps) {
   EXPECT_EQ(substepsOfASpinningRod(Vec3(1, 0, 1)), 18);
 }
 
+// Two islands in one world: a box spinning at 150 rad/s on a hinge about
+// its vertical axis (25 sub-steps a step at 0.1 rad each) and a pendulum
+// swinging slowly (10). Each island takes its own count and moves
+// exactly as it does alone in a world; with one count for the world the
+// pendulum took the spinning box's 25.
+TEST(Solver, EachIslandTakesTheSubstepsItsOwnTurnAsksFor) {
+  struct Poses {
+    Vec3 box, boxSpin, bob, bobVelocity;
+    int substeps = 0;
+  };
+  auto run = [](bool withBox, bool withPendulum) {
+    World world;
+    world.setSettings(SolverSettings::subStepped(10));
+    BodyId box = -1, bob = -1;
+    if (withBox) {
+      box = world.createBody(boxBody(Vec3(0, 0, 0), 1.0, Vec3(0.4, 0.2, 0.1)));
+      hingeToWorld(world, box, Vec3::UnitZ());
+      world.setAngularVelocity(box, Vec3(0, 0, 150));
+    }
+    if (withPendulum) {
+      bob = world.createBody(sphereBody(Vec3(0.5, 3, -0.8), 1.0, 0.05));
+      BallJointDesc joint;
+      joint.common.bodyB = bob;
+      joint.anchor = Vec3(0, 3, 0);
+      world.createJoint(joint);
+    }
+    Poses p;
+    for (int i = 0; i < 30; ++i) {
+      world.step(1.0 / 60.0);
+      p.substeps = std::max(p.substeps, world.lastStepStats().substeps);
+    }
+    if (box >= 0) {
+      p.box = world.body(box).position;
+      p.boxSpin = world.body(box).angularVelocity;
+    }
+    if (bob >= 0) {
+      p.bob = world.body(bob).position;
+      p.bobVelocity = world.body(bob).linearVelocity;
+    }
+    return p;
+  };
+  const Poses both = run(true, true), box = run(true, false), pendulum = run(false, true);
+  EXPECT_EQ(box.substeps, 25);
+  EXPECT_EQ(pendulum.substeps, 10);
+  EXPECT_EQ(both.substeps, 25);
+  EXPECT_EQ(both.box, box.box);
+  EXPECT_EQ(both.boxSpin, box.boxSpin);
+  EXPECT_EQ(both.bob, pendulum.bob);
+  EXPECT_EQ(both.bobVelocity, pendulum.bobVelocity);
+  EXPECT_GT(pendulum.bobVelocity.norm(), 0.5);  // it does swing
+}
+
 // With more sub-steps the rigid-row spring keeps the nominal sub-step's
 // stiffness (its stretch under a load does not depend on the sub-step:
 // C = K F / omega^2). A 10 kg ball hanging on a hinge about the vertical
