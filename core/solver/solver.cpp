@@ -73,6 +73,46 @@ bool isotropic(const Mat3& inertia) {
          inertia(2, 1) == 0.0;
 }
 
+// Euler's equation in the body frame, I dw/dt + w x (I w) = 0, over h by
+// the implicit midpoint rule: the end rate w' with I (w' - w) + h m x (I m)
+// = 0, m = (w + w') / 2, by Newton's method from w (3 x 3). Newton
+// converges quadratically: at h |w| << 1 one or two steps reach rounding
+// (after a correction of 1e-7 |w| the next would be about 1e-14 |w|), and
+// the loop stops there (four fixed steps with a pivoted LU each were a
+// third of a hair sub-step). A diagonal inertia (a box's, a capsule's, a
+// cylinder's in their own frames) has its products written out: for
+// I = diag(d), m x (I m) and the Jacobian's off-diagonal part are the
+// differences of d times products of m, a third of the general path's
+// work (hair's bodies spent 16% of a step here).
+Vec3 gyroscopicMidpoint(const Mat3& I, const Vec3& w, double h) {
+  Vec3 next = w;
+  const bool diagonal = I(0, 1) == 0.0 && I(0, 2) == 0.0 && I(1, 0) == 0.0 && I(1, 2) == 0.0 &&
+                        I(2, 0) == 0.0 && I(2, 1) == 0.0;
+  const Vec3 d = I.diagonal();
+  const double c = 0.5 * h;
+  for (int k = 0; k < 4; ++k) {
+    const Vec3 m = 0.5 * (w + next);
+    Vec3 F;
+    Mat3 dF;
+    if (diagonal) {
+      const double d21 = d.z() - d.y(), d02 = d.x() - d.z(), d10 = d.y() - d.x();
+      F = d.cwiseProduct(next - w) +
+          h * Vec3(m.y() * m.z() * d21, m.z() * m.x() * d02, m.x() * m.y() * d10);
+      dF << d.x(), c * m.z() * d21, c * m.y() * d21,  //
+          c * m.z() * d02, d.y(), c * m.x() * d02,    //
+          c * m.y() * d10, c * m.x() * d10, d.z();
+    } else {
+      const Vec3 Im = I * m;
+      F = I * (next - w) + h * m.cross(Im);
+      dF = I + c * (skew(m) * I - skew(Im));
+    }
+    const Vec3 delta = solve3(dF, F);
+    next -= delta;
+    if (delta.squaredNorm() <= 1e-14 * next.squaredNorm()) break;
+  }
+  return next;
+}
+
 // One row solved alone with its accumulated impulse clamped to [lo, hi]
 // (section 4.3: clamp the total, never the increment).
 void solveRow(ConstraintRow& row, bool useBias, SolverBody& a, SolverBody& b) {
@@ -583,29 +623,15 @@ void Solver::integrateVelocities(const StepInput& in, const SolverSettings& s, d
     if (s.gyroscopic && b.rotation.gyroscopic && !isotropic(b.inertiaBody)) {
       // Euler's equation in the body frame, I dw/dt + w x (I w) = 0, by
       // the implicit midpoint rule: I (w' - w) + h m x (I m) = 0 with
-      // m = (w + w') / 2, solved by Newton's method (3x3, a few steps).
-      // The midpoint rule keeps both |L| and the energy of this equation
-      // exactly; the explicit form w -= h I^-1 (w x I w) gains energy and
-      // blows up fast spinners, implicit Euler bleeds momentum (17% in
-      // 10 s in tests/core/integrate_test.cpp's tumbling box).
+      // m = (w + w') / 2 (gyroscopicMidpoint). The midpoint rule keeps
+      // both |L| and the energy of this equation exactly; the explicit
+      // form w -= h I^-1 (w x I w) gains energy and blows up fast
+      // spinners, implicit Euler bleeds momentum (17% in 10 s in
+      // tests/core/integrate_test.cpp's tumbling box).
       // integratePositions() turns the body with the midpoint rate (the
       // end rate plus gyroOffset_) and carries the body-frame rate along.
-      // Newton converges quadratically from w: at h |w| << 1 one or two
-      // steps reach rounding, and the loop stops there (the four fixed
-      // steps with a pivoted LU each were a third of a hair sub-step).
       const Vec3 wb = R.transpose() * w;
-      Vec3 next = wb;
-      for (int k = 0; k < 4; ++k) {
-        const Vec3 mid = 0.5 * (wb + next);
-        const Vec3 Imid = b.inertiaBody * mid;
-        const Vec3 F = b.inertiaBody * (next - wb) + h * mid.cross(Imid);
-        const Mat3 dF = b.inertiaBody + 0.5 * h * (skew(mid) * b.inertiaBody - skew(Imid));
-        const Vec3 delta = solve3(dF, F);
-        next -= delta;
-        // Quadratic convergence: after a correction of 1e-7 |w| the
-        // next would be about 1e-14 |w|, rounding.
-        if (delta.squaredNorm() <= 1e-14 * next.squaredNorm()) break;
-      }
+      const Vec3 next = gyroscopicMidpoint(b.inertiaBody, wb, h);
       w = R * next;
       gyroOffset_[i] = R * (0.5 * (wb - next));
     }
