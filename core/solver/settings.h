@@ -60,14 +60,15 @@ struct SolverSettings {
   // many as keep the fastest turn of any of its bodies (its island's peak
   // over the last step's sub-steps) to at most this angle per sub-step,
   // up to maxSubstepFactor times `substeps` (islands share no movable
-  // body and step apart, Solver::chooseClasses). A body held only
-  // by ball joints whose anchors lie on one line through its centre of
-  // mass (a capsule chain's link) counts only its turn across that line:
-  // its spin about it moves no anchor (Solver::noteLeverArms). The rows are
-  // linear in the turn: a light link whipping at 240 rad/s turns 0.4 rad
-  // in a 1/600 s sub-step and its joints open by r (1 - cos 0.4), 4 mm
-  // at once. Rigid-row springs keep the stiffness of the nominal
-  // sub-step. 0: off (a fixed count).
+  // body and step apart, Solver::chooseClasses). A body held only by ball
+  // joints with anchors on one line through its centre of mass (a capsule
+  // chain's link), or by hinges about an axis through it (a flywheel),
+  // counts only its turn across that line: its spin about it moves no
+  // row (Solver::noteLeverArms). The rows are linear in the turn: a
+  // light link whipping at 240 rad/s turns 0.4 rad in a 1/600 s sub-step
+  // and its joints open by r (1 - cos 0.4), 4 mm at once. Rigid-row
+  // springs keep the stiffness of the nominal sub-step. 0: off (a fixed
+  // count).
   double maxTurnPerSubstep = 0.0;
   int maxSubstepFactor = 4;
   // Sub-steps keep the rows, K and factors the step prepared while every

@@ -202,11 +202,15 @@ void Solver::notePeakTurnRate(const StepInput& in) {
 // joint's rows hold its anchor, and a turn of the body moves the anchor
 // by w x r: a turn about the line through the centre of mass and the
 // anchor moves it not at all, and the rows' linearization (the reason for
-// maxTurnPerSubstep) loses nothing to it. A body whose every joint is a
-// ball joint with its anchor on one such line (a capsule chain's link, a
-// hair segment) counts only the turn across that line; its spin about it,
-// which light capsules pick up from every glancing contact, does not ask
-// for sub-steps. Any other joint (its rows hold directions too) and any
+// maxTurnPerSubstep) loses nothing to it. A hinge's rows also hold its
+// axis, which a turn about that axis leaves where it is (its angle rows
+// are linear in that turn), so a body turning about its hinge's axis
+// through its centre of mass (a wheel, a flywheel) loses nothing either;
+// so does a universal joint's body turning about its own axis (ODE's
+// hinge2 wheels). A body all of whose joints allow one such line (a
+// capsule chain's link, a hair segment, a wheel) counts only its turn
+// across it; its spin about it, which light capsules pick up from every
+// glancing contact, does not ask for sub-steps. Any other joint and any
 // contact (its point moves with the body) count the whole turn.
 void Solver::noteLeverArms(const StepInput& in) {
   const std::size_t bodyCount = in.bodies.size();
@@ -215,16 +219,28 @@ void Solver::noteLeverArms(const StepInput& in) {
   auto all = [&](BodyId i) {
     if (i != kWorldBody) leverArms_[i] = LeverArms::Any;
   };
-  auto lever = [&](BodyId i, const Vec3& r) {
+  // Body i may turn about the unit body-frame axis u alone.
+  auto about = [&](BodyId i, const Vec3& u) {
     if (i == kWorldBody || leverArms_[i] == LeverArms::Any) return;
-    const double length = r.norm();
-    if (length == 0.0) return;  // an anchor at the centre of mass: no turn moves it
     if (leverArms_[i] == LeverArms::None) {
       leverArms_[i] = LeverArms::OnAxis;
-      leverAxis_[i] = r / length;
-    } else if (r.cross(leverAxis_[i]).norm() > kOnAxis * length) {
+      leverAxis_[i] = u;
+    } else if (u.cross(leverAxis_[i]).norm() > kOnAxis) {
       leverArms_[i] = LeverArms::Any;
     }
+  };
+  // A ball joint's anchor r: any turn about the line through it.
+  auto lever = [&](BodyId i, const Vec3& r) {
+    const double length = r.norm();
+    if (length > 0.0) about(i, r / length);  // at the centre of mass no turn moves it
+  };
+  // A hinge's (or universal joint's) axis u: turns about it, when the
+  // anchor r lies on it.
+  auto axle = [&](BodyId i, const Vec3& u, const Vec3& r) {
+    if (r.cross(u).norm() > kOnAxis * r.norm())
+      all(i);
+    else
+      about(i, u);
   };
   for (const std::int32_t source : active_) {
     if (source < 0) {
@@ -234,10 +250,17 @@ void Solver::noteLeverArms(const StepInput& in) {
       continue;
     }
     const Joint& joint = in.joints[source];
+    const JointFrames& f = joint.frames;
     const JointCommon& c = common(joint.desc);
     if (std::holds_alternative<BallJointDesc>(joint.desc)) {
-      lever(c.bodyA, joint.frames.localAnchorA);
-      lever(c.bodyB, joint.frames.localAnchorB);
+      lever(c.bodyA, f.localAnchorA);
+      lever(c.bodyB, f.localAnchorB);
+    } else if (std::holds_alternative<HingeJointDesc>(joint.desc)) {
+      axle(c.bodyA, f.localFrameA * Vec3::UnitX(), f.localAnchorA);  // hinge.cpp: frame x
+      axle(c.bodyB, f.localFrameB * Vec3::UnitX(), f.localAnchorB);
+    } else if (std::holds_alternative<UniversalJointDesc>(joint.desc)) {
+      axle(c.bodyA, f.localFrameA * Vec3::UnitX(), f.localAnchorA);  // universal.cpp: A's x,
+      axle(c.bodyB, f.localFrameB * Vec3::UnitY(), f.localAnchorB);  // B's y
     } else {
       all(c.bodyA);
       all(c.bodyB);

@@ -996,30 +996,44 @@ TEST(RunawayGuard, NonFiniteStateIsPutBackAndNamed) {
 namespace blockstep::test {
 namespace {
 
-// The sub-step count a step of a world with one box, spinning about z at
-// `rate` rad/s, takes once the solver has seen it turn (its second step).
 // A box at the origin spinning about z at `rate` rad/s, hinged to the
-// world about z (or free), in a world without gravity.
+// world about z (or free), in a world without gravity. With an offset the
+// hinge's axis passes that far along x from the box's centre, which then
+// circles it (its anchor turns with the box: the turn asks for sub-steps;
+// about an axis through the centre it would not).
 BodyId spinningBox(World& world, const SolverSettings& s, double rate, bool hinged,
-                   const Limit& limit = {}) {
+                   const Limit& limit = {}, double offset = 0.0) {
   world.setGravity(Vec3::Zero());
   world.setSettings(s);
   const BodyId box = world.createBody(boxBody(Vec3(0, 0, 0), 1.0, Vec3(0.4, 0.2, 0.1)));
-  if (hinged) hingeToWorld(world, box, Vec3::UnitZ(), limit);
-  world.setAngularVelocity(box, Vec3(0, 0, rate));
+  if (hinged) {
+    HingeJointDesc hinge;
+    hinge.common.bodyB = box;
+    hinge.anchor = Vec3(offset, 0, 0);
+    hinge.axis = Vec3::UnitZ();
+    hinge.limit = limit;
+    world.createJoint(hinge);
+  }
+  const Vec3 w(0, 0, rate);
+  world.setAngularVelocity(box, w);
+  world.setLinearVelocity(box, w.cross(Vec3(-offset, 0, 0)));
   return box;
 }
 
-int substepsWhileSpinning(double rate, bool hinged, double maxTurn) {
+// The sub-step count a step of a world with one such box, hinged 5 cm
+// off its centre, takes once the solver has seen it turn (its second
+// step).
+int substepsWhileSpinning(double rate, bool hinged, double maxTurn, double offset = 0.05) {
   World world;
   SolverSettings s = SolverSettings::subStepped(10);
   s.maxTurnPerSubstep = maxTurn;
-  const BodyId box = spinningBox(world, s, rate, hinged);
+  const BodyId box = spinningBox(world, s, rate, hinged, {}, offset);
   world.step(1.0 / 60.0);
   EXPECT_EQ(world.lastStepStats().substeps, 10) << "the first step has seen no turn yet";
   world.step(1.0 / 60.0);
-  // The hinge leaves the spin about its axis alone, at any sub-step count.
-  EXPECT_NEAR(world.body(box).angularVelocity.z(), rate, 1e-9 * rate);
+  // A hinge through the centre leaves the spin about its axis alone, at
+  // any sub-step count.
+  if (offset == 0.0) EXPECT_NEAR(world.body(box).angularVelocity.z(), rate, 1e-9 * rate);
   return world.lastStepStats().substeps;
 }
 
@@ -1034,6 +1048,9 @@ TEST(Solver, SubstepsFollowHowFastAJointedBodyTurns) {
   EXPECT_EQ(substepsWhileSpinning(1000.0, true, turn), 40);  // four times the nominal, at most
   EXPECT_EQ(substepsWhileSpinning(150.0, false, turn), 10);  // free
   EXPECT_EQ(substepsWhileSpinning(150.0, true, 0.0), 10);    // off
+  // A wheel: turning about its hinge's axis through its centre leaves the
+  // hinge's rows as they were.
+  EXPECT_EQ(substepsWhileSpinning(150.0, true, turn, 0.0), 10);
 }
 
 // A 10 cm rod hung from the world by a ball joint at its top end, in a
@@ -1068,8 +1085,8 @@ TEST(Solver, SpinAboutTheLineThroughABallJointsAnchorAsksForNoMoreSubsteps) {
   EXPECT_EQ(substepsOfASpinningRod(Vec3(1, 0, 1)), 18);
 }
 
-// Two islands in one world: a box spinning at 150 rad/s on a hinge about
-// its vertical axis (25 sub-steps a step at 0.1 rad each) and a pendulum
+// Two islands in one world: a box circling at 150 rad/s on a hinge beside
+// it (25 sub-steps a step at 0.1 rad each) and a pendulum
 // swinging slowly (10). Each island takes its own count and moves
 // exactly as it does alone in a world; with one count for the world the
 // pendulum took the spinning box's 25.
@@ -1083,9 +1100,18 @@ TEST(Solver, EachIslandTakesTheSubstepsItsOwnTurnAsksFor) {
     world.setSettings(SolverSettings::subStepped(10));
     BodyId box = -1, bob = -1;
     if (withBox) {
+      // Hinged 5 cm off its centre, which circles the axis, and driven
+      // at its speed (sub-steps lose some of a circling body's energy).
       box = world.createBody(boxBody(Vec3(0, 0, 0), 1.0, Vec3(0.4, 0.2, 0.1)));
-      hingeToWorld(world, box, Vec3::UnitZ());
+      HingeJointDesc hinge;
+      hinge.common.bodyB = box;
+      hinge.anchor = Vec3(0.05, 0, 0);
+      hinge.axis = Vec3::UnitZ();
+      hinge.motor.targetVelocity = 150.0;
+      hinge.motor.maxForce = 1e4;
+      world.createJoint(hinge);
       world.setAngularVelocity(box, Vec3(0, 0, 150));
+      world.setLinearVelocity(box, Vec3(0, 0, 150).cross(Vec3(-0.05, 0, 0)));
     }
     if (withPendulum) {
       bob = world.createBody(sphereBody(Vec3(0.5, 3, -0.8), 1.0, 0.05));
@@ -1134,11 +1160,15 @@ TEST(Solver, MoreSubstepsKeepTheRigidRowSpringsStiffness) {
     world.setGravity(Vec3(0, 0, -9.81));
     world.setSettings(SolverSettings::subStepped(10));
     // A heavy ball hanging on a hinge 1 m above it, spinning about the
-    // vertical: the joint's stretch under the load is the spring's.
+    // vertical: the joint's stretch under the load is the spring's. The
+    // hinge's axis passes 10 um beside the ball's centre, so the spin
+    // turns its anchor and asks for sub-steps (about an axis through the
+    // centre it would not), while the pull it takes to circle that axis
+    // (2 N) stays small beside the weight (98 N).
     const BodyId ball = world.createBody(sphereBody(Vec3(0, 0, -1), 10.0, 0.1));
     HingeJointDesc joint;
     joint.common.bodyB = ball;
-    joint.anchor = Vec3(0, 0, 0);
+    joint.anchor = Vec3(1e-5, 0, 0);
     joint.axis = Vec3::UnitZ();
     const JointId j = world.createJoint(joint);
     world.setAngularVelocity(ball, Vec3(0, 0, spin));
