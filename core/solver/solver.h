@@ -215,8 +215,8 @@ class Solver {
   double* matrixOf(const ConstraintBlock& blk) { return blockMatrices_.data() + blk.matrix; }
   std::array<ConstraintRow, kMaxJointSlots> movedRows_;  // a joint's rows at the new pose
   // Islands whose joint equality rows are one block: a selection per
-  // class (each keeps its choice while its structure stays), the one in
-  // use pointed at.
+  // class (each keeps its choice while its structure stays), and the
+  // class whose selection is in use.
   std::vector<IslandBlocks> islandBlocksOf_ = std::vector<IslandBlocks>(1);
   std::size_t islandBlocksInUse_ = 0;
   IslandBlocks& islandBlocks() { return islandBlocksOf_[islandBlocksInUse_]; }
