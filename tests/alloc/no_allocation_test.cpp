@@ -5,6 +5,7 @@
 #include "compare/native/scenes.h"
 #include "support/allocation_counter.h"
 #include "support/test_world.h"
+#include "support/two_islands.h"
 
 namespace blockstep {
 namespace {
@@ -42,6 +43,29 @@ TEST(NoAllocation, StepOnTwoThreadsAllocatesNothingAfterWarmUp) {
     SolverSettings s = SolverSettings::subStepped(4);
     s.threads = 2;
     EXPECT_EQ(allocationsAfterWarmUp(name, s), 0);
+  }
+}
+
+// Islands that take different sub-step counts are stepped class by
+// class, each with its own island-block selection: none of it allocates
+// once warmed up, on one thread or two.
+TEST(NoAllocation, IslandsSteppedInClassesAllocateNothingAfterWarmUp) {
+  for (int threads : {1, 2}) {
+    SCOPED_TRACE(threads);
+    World world;
+    SolverSettings s = SolverSettings::subStepped(10);
+    s.threads = threads;
+    world.setSettings(s);
+    test::circlingBox(world);
+    test::slowPendulum(world);
+    for (int i = 0; i < 60; ++i)
+      world.step(1.0 / 60.0);
+    const long before = test::allocationCount();
+    for (int i = 0; i < 20; ++i) {
+      world.step(1.0 / 60.0);
+      EXPECT_EQ(world.lastStepStats().substeps, 25);  // the two classes: 10 and 25
+    }
+    EXPECT_EQ(test::allocationCount() - before, 0);
   }
 }
 

@@ -11,6 +11,7 @@
 #include "core/solver/row_ops.h"
 #include "support/ball_joint_rows.h"
 #include "support/test_world.h"
+#include "support/two_islands.h"
 
 namespace blockstep {
 namespace {
@@ -1085,41 +1086,23 @@ TEST(Solver, SpinAboutTheLineThroughABallJointsAnchorAsksForNoMoreSubsteps) {
   EXPECT_EQ(substepsOfASpinningRod(Vec3(1, 0, 1)), 18);
 }
 
-// Two islands in one world: a box circling at 150 rad/s on a hinge beside
-// it (25 sub-steps a step at 0.1 rad each) and a pendulum
-// swinging slowly (10). Each island takes its own count and moves
-// exactly as it does alone in a world; with one count for the world the
-// pendulum took the spinning box's 25.
+// Two islands in one world (support/two_islands.h): a box circling a
+// hinge (25 sub-steps a step) and a slow pendulum (10). Each island takes
+// its own count and moves exactly as it does alone in a world, on one
+// thread or two; with one count for the world the pendulum took the
+// box's 25.
 TEST(Solver, EachIslandTakesTheSubstepsItsOwnTurnAsksFor) {
   struct Poses {
     Vec3 box, boxSpin, bob, bobVelocity;
     int substeps = 0;
   };
-  auto run = [](bool withBox, bool withPendulum) {
+  auto run = [](bool withBox, bool withPendulum, int threads = 1) {
     World world;
-    world.setSettings(SolverSettings::subStepped(10));
-    BodyId box = -1, bob = -1;
-    if (withBox) {
-      // Hinged 5 cm off its centre, which circles the axis, and driven
-      // at its speed (sub-steps lose some of a circling body's energy).
-      box = world.createBody(boxBody(Vec3(0, 0, 0), 1.0, Vec3(0.4, 0.2, 0.1)));
-      HingeJointDesc hinge;
-      hinge.common.bodyB = box;
-      hinge.anchor = Vec3(0.05, 0, 0);
-      hinge.axis = Vec3::UnitZ();
-      hinge.motor.targetVelocity = 150.0;
-      hinge.motor.maxForce = 1e4;
-      world.createJoint(hinge);
-      world.setAngularVelocity(box, Vec3(0, 0, 150));
-      world.setLinearVelocity(box, Vec3(0, 0, 150).cross(Vec3(-0.05, 0, 0)));
-    }
-    if (withPendulum) {
-      bob = world.createBody(sphereBody(Vec3(0.5, 3, -0.8), 1.0, 0.05));
-      BallJointDesc joint;
-      joint.common.bodyB = bob;
-      joint.anchor = Vec3(0, 3, 0);
-      world.createJoint(joint);
-    }
+    SolverSettings s = SolverSettings::subStepped(10);
+    s.threads = threads;
+    world.setSettings(s);
+    const BodyId box = withBox ? circlingBox(world) : -1;
+    const BodyId bob = withPendulum ? slowPendulum(world) : -1;
     Poses p;
     for (int i = 0; i < 30; ++i) {
       world.step(1.0 / 60.0);
@@ -1144,16 +1127,21 @@ TEST(Solver, EachIslandTakesTheSubstepsItsOwnTurnAsksFor) {
   EXPECT_EQ(both.bob, pendulum.bob);
   EXPECT_EQ(both.bobVelocity, pendulum.bobVelocity);
   EXPECT_GT(pendulum.bobVelocity.norm(), 0.5);  // it does swing
+  // And on two threads (each class's islands shared out), the same bits.
+  const Poses twoThreads = run(true, true, 2);
+  EXPECT_EQ(twoThreads.box, both.box);
+  EXPECT_EQ(twoThreads.bob, both.bob);
+  EXPECT_EQ(twoThreads.bobVelocity, both.bobVelocity);
 }
 
 // With more sub-steps the rigid-row spring keeps the nominal sub-step's
 // stiffness (its stretch under a load does not depend on the sub-step:
 // C = K F / omega^2). A 10 kg ball hanging on a hinge about the vertical
-// stretches it alike at 10 sub-steps and at the 25 its spin about the
-// hinge asks for (a hinge's rows hold its axis, which every turn moves); scaled with the sub-step,
-// as a StepSpring is, the spring was 6.25 times stiffer (0.00073 against 0.0046 mm), and switching
-// between the two made ODE's taut bridge scene in the compare runner bounce its crate (2,400 J over
-// its start).
+// stretches it alike at 10 sub-steps and at the 25 its spin asks for;
+// scaled with the sub-step, as a StepSpring is, the spring was 6.25 times
+// stiffer (0.00073 against 0.0046 mm), and switching between the two made
+// ODE's taut bridge scene in the compare runner bounce its crate (2,400 J
+// over its start).
 TEST(Solver, MoreSubstepsKeepTheRigidRowSpringsStiffness) {
   auto sag = [](double spin) {
     World world;
