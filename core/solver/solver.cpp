@@ -556,9 +556,7 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
     const Body& b = in.bodies[i];
     if (b.alive && b.type == BodyType::Kinematic) classesAllowed = false;
     const std::int32_t island = islandOf(i);
-    if (island < 0) continue;
-    islandLastTurn_[island] = std::max(islandLastTurn_[island], bodyTurn_[i]);
-    islandLastFullTurn_[island] = std::max(islandLastFullTurn_[island], bodyFullTurn_[i]);
+    if (island >= 0) islandLastTurn_[island] = std::max(islandLastTurn_[island], bodyTurn_[i]);
   }
   classes_.clear();
   classOfIsland_.resize(islandCount_);
@@ -606,10 +604,6 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
       renumbered_[k] = fill_[classOfIsland_[k]]++;
     for (std::int32_t& island : sourceIsland_)
       island = renumbered_[island];
-    // The last turns follow (islandLastTurn_ has served).
-    for (int k = 0; k < islandCount_; ++k)
-      islandLastTurn_[renumbered_[k]] = islandLastFullTurn_[k];
-    std::swap(islandLastTurn_, islandLastFullTurn_);
     for (std::int32_t& island : islandOfRoot_) {
       if (island >= 0) island = renumbered_[island];
     }
@@ -617,6 +611,13 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
       for (int k = classes_[c].islandBegin; k < classes_[c].islandEnd; ++k)
         classOfIsland_[k] = static_cast<std::int32_t>(c);
     }
+  }
+  // Each island's whole turn in the last step (carried rows), in the
+  // islands' final numbering.
+  for (std::int32_t i = 0; i < bodyCount; ++i) {
+    const std::int32_t island = islandOf(i);
+    if (island >= 0)
+      islandLastFullTurn_[island] = std::max(islandLastFullTurn_[island], bodyFullTurn_[i]);
   }
   if (islandBlocksOf_.size() < classes_.size()) islandBlocksOf_.resize(classes_.size());
 }
