@@ -17,4 +17,10 @@ void buildJointRows(const BallJointDesc& d, const JointPose& p, RowWriter& out) 
   addPointRows(p, d.common.softness, 0, out);
 }
 
+// The point rows hold the anchor, which a turn about the line through it
+// and the centre of mass leaves where it is.
+FreeTurn freeTurn(const BallJointDesc&, const JointFrames& f, bool bodyB) {
+  return turnAboutAnchor(bodyB ? f.localAnchorB : f.localAnchorA);
+}
+
 }  // namespace blockstep

@@ -30,4 +30,12 @@ void buildJointRows(const HingeJointDesc& d, const JointPose& p, RowWriter& out)
   addCoordinateRows(rate, rel.angle(0), d.limit, d.motor, 6, out);
 }
 
+// A turn about the hinge's axis (frame x) leaves the rotation rows as
+// they were and moves the angle row linearly; through the anchor it
+// leaves the point rows too (a wheel, a flywheel).
+FreeTurn freeTurn(const HingeJointDesc&, const JointFrames& f, bool bodyB) {
+  return bodyB ? turnAboutAxle(f.localFrameB * Vec3::UnitX(), f.localAnchorB)
+               : turnAboutAxle(f.localFrameA * Vec3::UnitX(), f.localAnchorA);
+}
+
 }  // namespace blockstep

@@ -99,6 +99,17 @@ JointFrames framesAt(const Body& a, const Body& b, const Vec3& anchor, const Qua
   return f;
 }
 
+FreeTurn turnAboutAnchor(const Vec3& anchor) {
+  const double length = anchor.norm();
+  if (length == 0.0) return {FreeTurn::Kind::None, Vec3::Zero()};
+  return {FreeTurn::Kind::About, anchor / length};
+}
+
+FreeTurn turnAboutAxle(const Vec3& axis, const Vec3& anchor) {
+  if (anchor.cross(axis).norm() > kOnLine * anchor.norm()) return {};
+  return {FreeTurn::Kind::About, axis};
+}
+
 const char* jointKindName(const JointDesc& d) {
   struct Names {
     const char* operator()(const BallJointDesc&) const { return "ball"; }

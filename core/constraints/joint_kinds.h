@@ -43,6 +43,35 @@ void buildJointRows(const MotorJointDesc& d, const JointPose& p, JointState& sta
 
 #undef BLOCKSTEP_JOINT_KIND
 
+// The turn of one of a joint's bodies that moves none of the joint's rows
+// (the solver leaves it out of its sub-step count: Solver::noteLeverArms;
+// the rows are linear in a turn, so any other turn's linearization error
+// asks for sub-steps):
+//   Every: every turn moves some row (the default for a kind);
+//   About: a turn about `axis` (unit, in that body's frame) moves none;
+//   None:  no turn moves one (a ball joint anchored at the centre of mass).
+struct FreeTurn {
+  enum class Kind : std::uint8_t { Every, About, None };
+  Kind kind = Kind::Every;
+  Vec3 axis = Vec3::Zero();
+};
+template <class Desc>
+FreeTurn freeTurn(const Desc&, const JointFrames&, bool /*bodyB*/) {
+  return {};
+}
+FreeTurn freeTurn(const BallJointDesc& d, const JointFrames& f, bool bodyB);
+FreeTurn freeTurn(const HingeJointDesc& d, const JointFrames& f, bool bodyB);
+FreeTurn freeTurn(const UniversalJointDesc& d, const JointFrames& f, bool bodyB);
+// A point or a direction lies on a line when it is off it by less than
+// this fraction of its length.
+inline constexpr double kOnLine = 1e-6;
+// The free turn of a body held at `anchor` (its frame, from the centre
+// of mass): about the line through the anchor, any turn at the centre.
+FreeTurn turnAboutAnchor(const Vec3& anchor);
+// ... and of one also held to `axis` (unit, its frame): a turn about the
+// axis when the anchor lies on it, else none is free.
+FreeTurn turnAboutAxle(const Vec3& axis, const Vec3& anchor);
+
 // On updateJoint, a kind whose rows read geometry fixed at creation (not
 // only the frames) keeps it from the joint as made: the caller's new
 // description brings limits, motors and softness, not geometry.

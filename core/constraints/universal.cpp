@@ -59,4 +59,12 @@ void buildJointRows(const UniversalJointDesc& d, const JointPose& p, RowWriter& 
   addCoordinateRows(rate, rel.angle(1), d.limit2, d.motor2, 9, out);
 }
 
+// Body A turning about axis1 (A's frame x) or B about axis2 (B's frame
+// y) keeps the two axes perpendicular; through the anchor the point (or
+// ODE's hinge2 suspension) rows stay too.
+FreeTurn freeTurn(const UniversalJointDesc&, const JointFrames& f, bool bodyB) {
+  return bodyB ? turnAboutAxle(f.localFrameB * Vec3::UnitY(), f.localAnchorB)
+               : turnAboutAxle(f.localFrameA * Vec3::UnitX(), f.localAnchorA);
+}
+
 }  // namespace blockstep

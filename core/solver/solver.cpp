@@ -198,73 +198,51 @@ void Solver::notePeakTurnRate(const StepInput& in) {
       true);
 }
 
-// What of each body's turn its rows see (notePeakTurnRate). A ball
-// joint's rows hold its anchor, and a turn of the body moves the anchor
-// by w x r: a turn about the line through the centre of mass and the
-// anchor moves it not at all, and the rows' linearization (the reason for
-// maxTurnPerSubstep) loses nothing to it. A hinge's rows also hold its
-// axis, which a turn about that axis leaves where it is (its angle rows
-// are linear in that turn), so a body turning about its hinge's axis
-// through its centre of mass (a wheel, a flywheel) loses nothing either;
-// so does a universal joint's body turning about its own axis (ODE's
-// hinge2 wheels). A body all of whose joints allow one such line (a
-// capsule chain's link, a hair segment, a wheel) counts only its turn
-// across it; its spin about it, which light capsules pick up from every
-// glancing contact, does not ask for sub-steps. Any other joint and any
-// contact (its point moves with the body) count the whole turn.
+// What of each body's turn its rows see (notePeakTurnRate): each joint
+// kind says which turn of its bodies moves none of its rows (freeTurn,
+// joint_kinds.h: about a ball joint's anchor line, about a hinge's axis
+// through the centre of mass). A body all of whose joints leave one such
+// line free (a capsule chain's link, a hair segment, a flywheel) counts
+// only its turn across it: light capsules, spun about their axes by
+// glancing contacts, asked for sub-steps their joints did not need. Any
+// contact (its point turns with the body) counts the whole turn.
 void Solver::noteLeverArms(const StepInput& in) {
   const std::size_t bodyCount = in.bodies.size();
   leverArms_.assign(bodyCount, LeverArms::None);
   leverAxis_.resize(bodyCount);
-  auto all = [&](BodyId i) {
-    if (i != kWorldBody) leverArms_[i] = LeverArms::Any;
-  };
-  // Body i may turn about the unit body-frame axis u alone.
-  auto about = [&](BodyId i, const Vec3& u) {
+  auto note = [&](BodyId i, const FreeTurn& free) {
     if (i == kWorldBody || leverArms_[i] == LeverArms::Any) return;
-    if (leverArms_[i] == LeverArms::None) {
-      leverArms_[i] = LeverArms::OnAxis;
-      leverAxis_[i] = u;
-    } else if (u.cross(leverAxis_[i]).norm() > kOnAxis) {
-      leverArms_[i] = LeverArms::Any;
+    switch (free.kind) {
+      case FreeTurn::Kind::None:
+        return;
+      case FreeTurn::Kind::Every:
+        leverArms_[i] = LeverArms::Any;
+        return;
+      case FreeTurn::Kind::About:
+        if (leverArms_[i] == LeverArms::None) {
+          leverArms_[i] = LeverArms::OnAxis;
+          leverAxis_[i] = free.axis;
+        } else if (free.axis.cross(leverAxis_[i]).norm() > kOnLine) {
+          leverArms_[i] = LeverArms::Any;
+        }
+        return;
     }
-  };
-  // A ball joint's anchor r: any turn about the line through it.
-  auto lever = [&](BodyId i, const Vec3& r) {
-    const double length = r.norm();
-    if (length > 0.0) about(i, r / length);  // at the centre of mass no turn moves it
-  };
-  // A hinge's (or universal joint's) axis u: turns about it, when the
-  // anchor r lies on it.
-  auto axle = [&](BodyId i, const Vec3& u, const Vec3& r) {
-    if (r.cross(u).norm() > kOnAxis * r.norm())
-      all(i);
-    else
-      about(i, u);
   };
   for (const std::int32_t source : active_) {
     if (source < 0) {
       const ContactManifold& m = in.contacts[contactIndex(source)];
-      all(m.bodyA);
-      all(m.bodyB);
+      note(m.bodyA, FreeTurn{});
+      note(m.bodyB, FreeTurn{});
       continue;
     }
     const Joint& joint = in.joints[source];
-    const JointFrames& f = joint.frames;
     const JointCommon& c = common(joint.desc);
-    if (std::holds_alternative<BallJointDesc>(joint.desc)) {
-      lever(c.bodyA, f.localAnchorA);
-      lever(c.bodyB, f.localAnchorB);
-    } else if (std::holds_alternative<HingeJointDesc>(joint.desc)) {
-      axle(c.bodyA, f.localFrameA * Vec3::UnitX(), f.localAnchorA);  // hinge.cpp: frame x
-      axle(c.bodyB, f.localFrameB * Vec3::UnitX(), f.localAnchorB);
-    } else if (std::holds_alternative<UniversalJointDesc>(joint.desc)) {
-      axle(c.bodyA, f.localFrameA * Vec3::UnitX(), f.localAnchorA);  // universal.cpp: A's x,
-      axle(c.bodyB, f.localFrameB * Vec3::UnitY(), f.localAnchorB);  // B's y
-    } else {
-      all(c.bodyA);
-      all(c.bodyB);
-    }
+    std::visit(
+        [&](const auto& d) {
+          note(c.bodyA, freeTurn(d, joint.frames, false));
+          note(c.bodyB, freeTurn(d, joint.frames, true));
+        },
+        joint.desc);
   }
 }
 

@@ -87,12 +87,10 @@ class Solver {
   // (sub-step counts).
   void notePeakTurnRate(const StepInput& in);
   void noteLeverArms(const StepInput& in);
-  // Where a body's rows hold it (noteLeverArms): nowhere but its centre
-  // of mass, on one line through it (leverAxis_, body frame), anywhere.
+  // Which turn of a body its rows see (noteLeverArms): none, all but
+  // the turn about one line through its centre of mass (leverAxis_, body
+  // frame), or all.
   enum class LeverArms : std::uint8_t { None, OnAxis, Any };
-  // An anchor is on the line when it is off it by less than this
-  // fraction of its distance from the centre of mass.
-  static constexpr double kOnAxis = 1e-6;
   // A row's softness as this step uses it (a StepSpring at the nominal
   // sub-step when the step runs more).
   Softness softnessOf(const Softness& soft, double h) const;

@@ -9,6 +9,14 @@ namespace {
 
 using test::boxBody;
 
+// No gravity, the default solver with the gyroscopic term on.
+void torqueFreeWithGyroscopicTerm(World& world) {
+  world.setGravity(Vec3::Zero());
+  SolverSettings s;
+  s.gyroscopic = true;
+  world.setSettings(s);
+}
+
 TEST(Integrate, FreeFallIsExactForSemiImplicitEuler) {
   // With constant g, semi-implicit Euler gives v_n = v0 + n h g and
   // x_n = x0 + n h v0 + h^2 g n (n + 1) / 2 exactly.
@@ -59,10 +67,7 @@ TEST(Integrate, ProjectileLandsWhereTheContinuousSolutionSays) {
 
 TEST(Integrate, TorqueFreeSpinKeepsAngularMomentumWithGyroscopicTerm) {
   World world;
-  world.setGravity(Vec3::Zero());
-  SolverSettings s;
-  s.gyroscopic = true;
-  world.setSettings(s);
+  torqueFreeWithGyroscopicTerm(world);
   BodyDesc d = boxBody(Vec3::Zero(), 1.0, Vec3(0.2, 0.6, 1.0));  // three distinct moments
   d.angularVelocity = Vec3(0.3, 6.0, 0.4);  // near the unstable middle axis: it tumbles
   const BodyId id = world.createBody(d);
@@ -85,10 +90,7 @@ TEST(Integrate, TorqueFreeSpinKeepsAngularMomentumWithGyroscopicTerm) {
 TEST(Integrate, GyroscopicStepAgreesForDiagonalAndFullInertia) {
   auto spin = [](bool turnedFrame) {
     World world;
-    world.setGravity(Vec3::Zero());
-    SolverSettings s;
-    s.gyroscopic = true;
-    world.setSettings(s);
+    torqueFreeWithGyroscopicTerm(world);
     BodyDesc d = boxBody(Vec3::Zero(), 1.0, Vec3(0.2, 0.6, 1.0));
     if (turnedFrame) {
       // Body frame B = principal frame P turned by T: q_B = q_P T and
@@ -130,10 +132,7 @@ TEST(Integrate, CubeSpinsUnchangedWithGyroscopicTerm) {
   // A cube's inertia is a multiple of the identity: w x (I w) = 0, so a
   // torque-free cube keeps its angular velocity whatever its axis.
   World world;
-  world.setGravity(Vec3::Zero());
-  SolverSettings s;
-  s.gyroscopic = true;
-  world.setSettings(s);
+  torqueFreeWithGyroscopicTerm(world);
   BodyDesc d = boxBody(Vec3::Zero(), 1.0, Vec3(0.5, 0.5, 0.5));
   d.angularVelocity = Vec3(0.3, 6.0, -2.4);
   const BodyId id = world.createBody(d);
@@ -157,10 +156,7 @@ TEST(Integrate, GyroscopicTermCanBeTurnedOffPerBody) {
   // With the world's term on, a body that opts out keeps w fixed while
   // its twin tumbles.
   World world;
-  world.setGravity(Vec3::Zero());
-  SolverSettings s;
-  s.gyroscopic = true;
-  world.setSettings(s);
+  torqueFreeWithGyroscopicTerm(world);
   BodyDesc d = boxBody(Vec3::Zero(), 1.0, Vec3(0.2, 0.6, 1.0));
   d.angularVelocity = Vec3(0.3, 6.0, 0.4);
   const BodyId tumbling = world.createBody(d);

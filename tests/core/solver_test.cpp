@@ -1034,7 +1034,9 @@ int substepsWhileSpinning(double rate, bool hinged, double maxTurn, double offse
   world.step(1.0 / 60.0);
   // A hinge through the centre leaves the spin about its axis alone, at
   // any sub-step count.
-  if (offset == 0.0) EXPECT_NEAR(world.body(box).angularVelocity.z(), rate, 1e-9 * rate);
+  if (offset == 0.0) {
+    EXPECT_NEAR(world.body(box).angularVelocity.z(), rate, 1e-9 * rate);
+  }
   return world.lastStepStats().substeps;
 }
 
