@@ -168,8 +168,35 @@ void dGeomSetConvex(dGeomID g, const dReal* planes, unsigned planeCount, const d
 
 void dGeomDestroy(dGeomID g) {
   BLOCKSTEP_REAL(dGeomDestroy);
-  guarded(__func__, [&] { blockstep::ode::ConvexGeoms::instance().forget(g); });
+  guarded(__func__, [&] {
+    blockstep::ode::ConvexGeoms::instance().forget(g);
+    blockstep::ode::RoundGeoms::instance().forget(g);
+  });
   real_dGeomDestroy(g);
+}
+
+// Spheres, capsules and cylinders: a contact's round surface keeps its
+// centre of curvature through the sub-steps (RoundGeoms).
+
+dGeomID dCreateSphere(dSpaceID space, dReal radius) {
+  BLOCKSTEP_REAL(dCreateSphere);
+  dGeomID g = real_dCreateSphere(space, radius);
+  guarded(__func__, [&] { blockstep::ode::RoundGeoms::instance().remember(g); });
+  return g;
+}
+
+dGeomID dCreateCapsule(dSpaceID space, dReal radius, dReal length) {
+  BLOCKSTEP_REAL(dCreateCapsule);
+  dGeomID g = real_dCreateCapsule(space, radius, length);
+  guarded(__func__, [&] { blockstep::ode::RoundGeoms::instance().remember(g); });
+  return g;
+}
+
+dGeomID dCreateCylinder(dSpaceID space, dReal radius, dReal length) {
+  BLOCKSTEP_REAL(dCreateCylinder);
+  dGeomID g = real_dCreateCylinder(space, radius, length);
+  guarded(__func__, [&] { blockstep::ode::RoundGeoms::instance().remember(g); });
+  return g;
 }
 
 // ---------------------------------------------------------------- bodies

@@ -14,7 +14,7 @@ WorldContactParams WorldContactParams::of(dWorldID world) {
 }
 
 MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
-                         const WorldContactParams& world) {
+                         const WorldContactParams& world, double radius1, double radius2) {
   MappedContact out;
   ContactManifold& m = out.manifold;
   const dSurfaceParameters& s = contact.surface;
@@ -27,6 +27,8 @@ MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
   m.points[0].position = Vec3(contact.geom.pos[0], contact.geom.pos[1], contact.geom.pos[2]);
   m.points[0].separation = -contact.geom.depth;
   m.points[0].normal = m.normal;
+  m.points[0].radiusA = radius2;
+  m.points[0].radiusB = radius1;
 
   ContactSurface& c = m.surface;
   c.softness = Softness::erpCfm((mode & dContactSoftERP) ? s.soft_erp : world.erp,

@@ -42,9 +42,12 @@ struct MappedContact {
   unsigned clamped = 0;  // ClampedInput kinds brought into range
 };
 
-// body1 and body2 as attached to the contact joint (kWorldBody for 0).
+// body1 and body2 as attached to the contact joint (kWorldBody for 0);
+// radius1 and radius2 how round their surfaces are at the point
+// (ContactPoint::radiusA; 0: not known to be round).
 MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
-                         const WorldContactParams& world);
+                         const WorldContactParams& world, double radius1 = 0.0,
+                         double radius2 = 0.0);
 
 // ODE makes one contact joint per point. Points of the same body pair and
 // the same surface are one manifold for the core (up to four points, each

@@ -3,6 +3,7 @@
 #include <vector>
 
 #include "adapters/ode/body_state.h"
+#include "core/collision/collide.h"
 #include "core/world/error.h"
 
 namespace blockstep::ode {
@@ -41,6 +42,48 @@ std::shared_ptr<const ConvexHull> ConvexGeoms::hull(dGeomID geom, std::string& w
   }
   if (!e->hull) why = e->error;
   return e->hull;
+}
+
+RoundGeoms& RoundGeoms::instance() {
+  static RoundGeoms geoms;
+  return geoms;
+}
+
+void RoundGeoms::remember(dGeomID geom) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  geoms_[geom] = true;
+}
+
+void RoundGeoms::forget(dGeomID geom) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  geoms_.erase(geom);
+}
+
+double RoundGeoms::roundness(dGeomID geom, const dReal* normal) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!geom || !geoms_.find(geom)) return 0.0;
+  }
+  dReal radius = 0, length = 0;
+  Shape::Kind kind = Shape::Kind::Sphere;
+  switch (dGeomGetClass(geom)) {
+    case dSphereClass:
+      radius = dGeomSphereGetRadius(geom);
+      break;
+    case dCapsuleClass:
+      kind = Shape::Kind::Capsule;
+      dGeomCapsuleGetParams(geom, &radius, &length);
+      break;
+    case dCylinderClass:
+      kind = Shape::Kind::Cylinder;
+      dGeomCylinderGetParams(geom, &radius, &length);
+      break;
+    default:
+      return 0.0;
+  }
+  const dReal* R = dGeomGetRotation(geom);  // 3 x 4, rows: its z axis is column 2
+  return surfaceRoundness(kind, radius, Vec3(R[2], R[6], R[10]),
+                          Vec3(normal[0], normal[1], normal[2]));
 }
 
 namespace {

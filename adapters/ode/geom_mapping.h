@@ -46,6 +46,24 @@ class ConvexGeoms {
   PointerMap<dGeomID, Entry> geoms_;
 };
 
+// The sphere, capsule and cylinder geoms alive, process-wide: a contact
+// names its two geoms (dContactGeom g1, g2), but a program filling a
+// dContact by hand may leave them unset, so only geoms seen made and not
+// yet destroyed are read.
+class RoundGeoms {
+ public:
+  static RoundGeoms& instance();
+  void remember(dGeomID geom);
+  void forget(dGeomID geom);
+  // How round `geom`'s surface is where it touches along `normal`
+  // (ContactPoint::radiusA); 0 for a geom not remembered.
+  double roundness(dGeomID geom, const dReal* normal);
+
+ private:
+  std::mutex mutex_;
+  PointerMap<dGeomID, bool> geoms_;
+};
+
 // Fills `out` with the shape of `geom` on core body `body` (kWorldBody:
 // a geom without a body), its filter from the geom's category and collide
 // bits; out's friction and restitution are kept. Returns false with

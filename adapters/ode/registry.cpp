@@ -1,5 +1,6 @@
 #include "adapters/ode/registry.h"
 
+#include "adapters/ode/geom_mapping.h"
 #include "adapters/ode/world_bridge.h"
 
 #include <algorithm>
@@ -145,7 +146,14 @@ void Registry::jointCreated(dWorldID world, dJointGroupID group, dJointID joint,
   r.group = group;
   r.index = static_cast<std::uint32_t>(w->joints.size());
   r.hasContact = contact != nullptr;
-  if (contact) r.contact = *contact;
+  if (contact) {
+    r.contact = *contact;
+    const dGeomID geoms[2] = {contact->geom.g1, contact->geom.g2};
+    for (int k = 0; k < 2; ++k) {
+      r.geomRoundness[k] = RoundGeoms::instance().roundness(geoms[k], contact->geom.normal);
+      if (r.geomRoundness[k] > 0.0) r.geomBody[k] = dGeomGetBody(geoms[k]);
+    }
+  }
   w->joints.push_back(joint);
   if (group) w->groups[group].push_back(joint);
 }

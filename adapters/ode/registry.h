@@ -33,6 +33,11 @@ struct JointRecord {
   std::uint32_t index = 0;  // in its world's joint list
   bool hasContact = false;
   dContact contact{};  // the contact joint's data, as given to dJointCreateContact
+  // How round each of the contact's geoms (g1, g2) is at the point
+  // (RoundGeoms), and the body it is on: read when the joint is made,
+  // while the geoms the contact names are surely alive.
+  double geomRoundness[2] = {0.0, 0.0};
+  dBodyID geomBody[2] = {nullptr, nullptr};
   // LMotor axes' frames (0 world, 1 body1, 2 body2): ODE has no getter.
   int lmotorRel[3] = {0, 0, 0};
   // Plane2D motors (x, y, angle): velocity and max force. ODE has no getter.

@@ -269,8 +269,16 @@ bool WorldBridge::readAll(const WorldRecord& record) {
     if ((!b1 && !b2) || !dJointIsEnabled(j)) continue;
     const JointRecord* rec = record.joint(j);
     if (rec && rec->hasContact) {
-      const MappedContact mapped =
-          mapContact(rec->contact, coreBody(b1), coreBody(b2), contactParams_);
+      double radius[2] = {0.0, 0.0};  // body1's and body2's surfaces
+      for (int k = 0; k < 2; ++k) {
+        if (rec->geomRoundness[k] <= 0.0) continue;
+        if (rec->geomBody[k] == b1)
+          radius[0] = rec->geomRoundness[k];
+        else if (rec->geomBody[k] == b2)
+          radius[1] = rec->geomRoundness[k];
+      }
+      const MappedContact mapped = mapContact(rec->contact, coreBody(b1), coreBody(b2),
+                                              contactParams_, radius[0], radius[1]);
       if (mapped.unsupported) {
         message_ =
             std::string("ODE contact mode without a blockstep mapping: ") + mapped.unsupported;

@@ -34,6 +34,21 @@ double reachOf(const Shape& s, const ShapePose& pose, const std::vector<Body>& b
 
 }  // namespace
 
+double surfaceRoundness(Shape::Kind kind, double radius, const Vec3& axis, const Vec3& normal) {
+  // A cylinder touches along its side when the normal is within this
+  // cosine of square to its axis (lying on the ground, it rolls there).
+  constexpr double kSideContact = 1e-3;
+  switch (kind) {
+    case Shape::Kind::Sphere:
+    case Shape::Kind::Capsule:
+      return radius;
+    case Shape::Kind::Cylinder:
+      return std::abs(axis.dot(normal)) < kSideContact ? radius : 0.0;
+    default:
+      return 0.0;
+  }
+}
+
 // The exact fast paths (sphere and box against planes, spheres and boxes
 // with each other) come first; every other convex pair goes through
 // GJK/EPA and feature clipping.
@@ -107,6 +122,14 @@ void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>
     const Shape& b = swapped ? s1 : s2;
     m.bodyA = a.body;
     m.bodyB = b.body;
+    const ShapePose& poseA = swapped ? poses_[j] : poses_[i];
+    const ShapePose& poseB = swapped ? poses_[i] : poses_[j];
+    for (int k = 0; k < m.pointCount; ++k) {
+      ContactPoint& p = m.points[k];
+      const Vec3& n = p.normal.isZero() ? m.normal : p.normal;
+      p.radiusA = surfaceRoundness(a.kind, a.radius, poseA.rotation.col(2), n);
+      p.radiusB = surfaceRoundness(b.kind, b.radius, poseB.rotation.col(2), n);
+    }
     m.surface = settings.surface;
     if (settings.surfaceFromShapes) {
       m.surface.mu = std::sqrt(a.friction * b.friction);

@@ -61,6 +61,12 @@ struct CollisionSettings {
 int collideShapes(const Shape& s1, const ShapePose& p1, const Shape& s2, const ShapePose& p2,
                   double margin, bool boxBoxBySat, ContactManifold& m, bool& swapped);
 
+// How round a shape's surface is where it touches along `normal`
+// (ContactPoint::radiusA): a sphere's and a capsule's radius everywhere, a
+// cylinder's (its axis given) along its side but not on its flat ends or
+// their rims, 0 for every other kind.
+double surfaceRoundness(Shape::Kind kind, double radius, const Vec3& axis, const Vec3& normal);
+
 // The collide stage. Keeps its buffers (poses, boxes, pairs, the sweep's
 // order) from step to step, so a warmed-up scene allocates nothing.
 class Collider {

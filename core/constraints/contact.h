@@ -50,9 +50,17 @@ struct ContactPoint {
   // The world fills it in when zero.
   Vec3 normal = Vec3::Zero();
   std::uint32_t feature = 0;  // the caller's id for matching across steps; 0: none
-  // Filled by the world: anchors fixed in each body, so sub-steps update
-  // the separation from the bodies' motion without colliding again, and
-  // the friction directions across the point's normal.
+  // How round each surface is at the point: the radius of a sphere, of a
+  // capsule, of a cylinder touching along its side (0: a vertex, an edge
+  // or a flat face). The centres of that curvature, A's at position -
+  // radiusA normal and B's at position + radiusB normal, move with the
+  // bodies as the surfaces do: a ball rolling keeps its centre's height
+  // while the material point under it rises.
+  double radiusA = 0.0, radiusB = 0.0;
+  // Filled by the world: those centres as anchors fixed in each body, so
+  // sub-steps update the separation from the bodies' motion without
+  // colliding again, and the friction directions across the point's
+  // normal.
   Vec3 localA = Vec3::Zero(), localB = Vec3::Zero();
   // The separation when those anchors were made: a point kept from an
   // earlier step (carried) measures its separation from there.

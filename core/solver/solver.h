@@ -108,6 +108,13 @@ class Solver {
   void buildJointBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t j,
                        ConstraintBlock& blk);
   const Vec3& turnSinceStart(const StepInput& in, BodyId i);
+  struct ContactSide {
+    Vec3 lever;  // from the body's centre to the contact point, now
+    Vec3 moved;  // how far the body's surface there moved since the step's start
+  };
+  static ContactSide contactSide(const Vec3& local, double radius, const Vec3& outward,
+                                 const Vec3& x, const Quat& q, const Vec3& x0, const Quat& q0,
+                                 const Vec3& turn);
   void buildContactBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t c,
                          ConstraintBlock& blk);
   double penetrationRate(const ConstraintRow& row, const ConstraintBlock& blk, double h) const;
@@ -204,7 +211,8 @@ class Solver {
   std::vector<Vec3> startV_, startW_;  // velocities before the step (explicit Euler)
   std::vector<Vec3> startX_;           // poses at the step's start: contacts stay there
   std::vector<Quat> startQ_;
-  std::vector<Vec3> gyroOffset_;  // midpoint minus end angular velocity (gyroscopic)
+  std::vector<Vec3> gyroOffset_;          // midpoint minus end angular velocity (gyroscopic)
+  std::vector<std::uint8_t> heldByRows_;  // per body: a joint or contact acts on it this step
   std::vector<ConstraintBlock> blocks_;
   std::vector<ConstraintRow> rows_;
   // Each block's equality matrix (K, its factor or inverse), packed one

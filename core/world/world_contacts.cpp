@@ -213,8 +213,8 @@ void World::prepareContacts() {
       ContactPoint& p = m.points[i];
       if (p.normal.isZero()) p.normal = m.normal;  // from the core's own collision
       frictionBasis(p.normal, m.surface.frictionDir1, p.tangent1, p.tangent2);
-      p.localA = a.localPoint(p.position);
-      p.localB = b.localPoint(p.position);
+      p.localA = a.localPoint(p.position - p.radiusA * p.normal);
+      p.localB = b.localPoint(p.position + p.radiusB * p.normal);
       p.anchorSeparation = p.separation;
       p.carried = false;
       p.normalImpulse = 0.0;
@@ -346,8 +346,11 @@ void World::carryContactPoints() {
         if (n.dot(m.normal) < 0.99) continue;
         const Vec3& onA = flipped ? q.localB : q.localA;
         const Vec3& onB = flipped ? q.localA : q.localB;
-        const Vec3 pA = a.worldPoint(onA);
-        const Vec3 pB = b.worldPoint(onB);
+        const double radiusA = flipped ? q.radiusB : q.radiusA;
+        const double radiusB = flipped ? q.radiusA : q.radiusB;
+        // The surfaces' points: each centre of curvature out by its radius.
+        const Vec3 pA = a.worldPoint(onA) + radiusA * n;
+        const Vec3 pB = b.worldPoint(onB) - radiusB * n;
         const Vec3 gap = pB - pA;  // zero when the point was made
         const double separation = q.anchorSeparation + n.dot(gap);
         const double slid = (gap - n.dot(gap) * n).norm();
@@ -365,6 +368,8 @@ void World::carryContactPoints() {
         c.normal = n;
         c.localA = onA;
         c.localB = onB;
+        c.radiusA = radiusA;
+        c.radiusB = radiusB;
         c.carried = true;
         frictionBasis(n, m.surface.frictionDir1, c.tangent1, c.tangent2);
         const Vec3 oldT =
