@@ -56,6 +56,7 @@ nlohmann::json summary(const RunResult& r, double quickSolveMs) {
   j["last_second_penetration_m"] = r.lastSecondPenetration;
   j["drift_m"] = r.drift;
   j["max_energy_gain_j"] = r.maxEnergyGain;
+  j["max_energy_rise_j"] = r.maxEnergyRise;
   j["exploded"] = r.exploded;
   j["stopped_because"] = r.stoppedBecause;
   j["ode_messages"] = r.odeMessages;
@@ -155,7 +156,8 @@ nlohmann::json resultToJson(const RunResult& r) {
           {"last_second_penetration", r.lastSecondPenetration},
           {"drift", r.drift},
           {"start_energy", r.startEnergy},
-          {"max_energy_gain", r.maxEnergyGain}};
+          {"max_energy_gain", r.maxEnergyGain},
+          {"max_energy_rise", r.maxEnergyRise}};
 }
 
 RunResult resultFromJson(const nlohmann::json& j) {
@@ -179,6 +181,7 @@ RunResult resultFromJson(const nlohmann::json& j) {
   r.drift = j.at("drift");
   r.startEnergy = j.at("start_energy");
   r.maxEnergyGain = j.at("max_energy_gain");
+  r.maxEnergyRise = j.at("max_energy_rise");
   return r;
 }
 
@@ -534,9 +537,9 @@ int main(int argc, char** argv) {
   int labelWidth = 22;
   for (const std::string& label : steppers)
     labelWidth = std::max(labelWidth, static_cast<int>(label.size()));
-  std::printf("%-12s %-*s %7s %10s %10s %9s %12s %12s %10s %10s %10s  %s\n", "scene", labelWidth,
-              "stepper", "frames", "solve ms", "x qs20", "coll ms", "max sep mm", "rms sep mm",
-              "pen mm", "drift mm", "E gain J", "note");
+  std::printf("%-12s %-*s %7s %10s %10s %9s %12s %12s %10s %10s %10s %10s  %s\n", "scene",
+              labelWidth, "stepper", "frames", "solve ms", "x qs20", "coll ms", "max sep mm",
+              "rms sep mm", "pen mm", "drift mm", "E gain J", "E rise J", "note");
   // A progress line on a terminal for runs longer than a second (one run
   // at a time only).
   const bool terminal = jobs == 1 && isatty(fileno(stderr)) != 0;
@@ -588,10 +591,11 @@ int main(int argc, char** argv) {
     for (std::size_t k = 0; k < parsed.size(); ++k) {
       const RunResult& r = sceneResults[k];
       const double ratio = quickSolveMs > 0.0 ? r.medianSolveMs / quickSolveMs : 0.0;
-      std::printf("%-12s %-*s %7d %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f %10.3g  %s\n",
-                  r.scene.c_str(), labelWidth, r.stepper.c_str(), r.framesRun, r.medianSolveMs,
-                  ratio, r.medianCollideMs, r.maxSeparation * 1e3, r.rmsSeparation * 1e3,
-                  r.maxPenetration * 1e3, r.drift * 1e3, r.maxEnergyGain, note(r).c_str());
+      std::printf(
+          "%-12s %-*s %7d %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f %10.3g %10.3g  %s\n",
+          r.scene.c_str(), labelWidth, r.stepper.c_str(), r.framesRun, r.medianSolveMs, ratio,
+          r.medianCollideMs, r.maxSeparation * 1e3, r.rmsSeparation * 1e3, r.maxPenetration * 1e3,
+          r.drift * 1e3, r.maxEnergyGain, r.maxEnergyRise, note(r).c_str());
       nlohmann::json j = summary(r, quickSolveMs);
       const Stepper& st = parsed[k];
       j["kind"] = st.kind == Stepper::Kind::Quick       ? "quickstep"

@@ -414,6 +414,7 @@ void summarizeFrames(RunResult& r, double dt) {
   const int lastSecond = std::max(1, static_cast<int>(std::lround(1.0 / dt)));
   double lastPen = 0.0;
   int lastCount = 0;
+  double lowestEnergy = r.startEnergy;
   for (std::size_t f = 0; f < r.frames.size(); ++f) {
     const FrameRecord& rec = r.frames[f];
     solve.push_back(rec.solveSeconds * 1e3);
@@ -421,8 +422,10 @@ void summarizeFrames(RunResult& r, double dt) {
     r.maxSeparation = std::max(r.maxSeparation, rec.joints.separation);
     r.maxAngle = std::max(r.maxAngle, rec.joints.angle);
     r.maxPenetration = std::max(r.maxPenetration, rec.penetration);
-    r.maxEnergyGain =
-        std::max(r.maxEnergyGain, rec.kineticEnergy + rec.potentialEnergy - r.startEnergy);
+    const double energy = rec.kineticEnergy + rec.potentialEnergy;
+    r.maxEnergyGain = std::max(r.maxEnergyGain, energy - r.startEnergy);
+    lowestEnergy = std::min(lowestEnergy, energy);
+    r.maxEnergyRise = std::max(r.maxEnergyRise, energy - lowestEnergy);
     sumSq += rec.joints.separationSumSq;
     r.runawayFrames += rec.handedToOde > 0;
     r.odeSteppedFrames += rec.steppedByOde;

@@ -117,6 +117,11 @@ struct RunResult {
   // kinematic bodies aside).
   double startEnergy = 0.0;
   double maxEnergyGain = 0.0;
+  // The most it gained since its lowest so far (the start included): a
+  // stepper that gives energy back after the scene lost some (a ragdoll's
+  // head spun up on the ground after the landing took 480 J) shows here
+  // and not in the gain over the start.
+  double maxEnergyRise = 0.0;
   // Recorded when RunOptions::poseStride > 0: every body's pose (x, y, z,
   // qw, qx, qy, qz) at the start and after every poseStride-th frame, body
   // after body, frame after frame (the report's 3D replay).
