@@ -127,7 +127,9 @@ struct SolverSettings {
   int threads = 1;
   Integrator integrator = Integrator::SemiImplicitEuler;
   // Gyroscopic term w x (I w), integrated implicitly (off by default, as
-  // section 4.1 suggests).
+  // section 4.1 suggests): by the midpoint rule for a free body, by
+  // implicit Euler for one a joint or contact holds (integrateVelocities
+  // says why).
   bool gyroscopic = false;
   // The runaway guard (runaway_guard.h): an island whose kinetic energy
   // grew beyond what its forces, motors, kinematic bodies and position
