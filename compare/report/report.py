@@ -91,17 +91,22 @@ def table_html(scene, runs):
         ratio = r["solve_ratio_to_quickstep20"]
         rows.append(
             "<tr class='%s'><td>%s</td><td>%d</td><td>%.4f</td><td>%s</td><td>%.4f</td>"
-            "<td>%s</td><td>%s</td><td>%.2f</td><td>%s</td><td>%s</td><td>%s</td><td>%s</td></tr>"
+            "<td>%s</td><td>%s</td><td>%.2f</td><td>%s</td><td>%s</td><td>%s</td><td>%.3g</td>"
+            "<td>%.3g</td><td>%s</td></tr>"
             % (cls, html.escape(r["stepper"]), r["frames"], r["median_solve_ms"],
                "%.2f" % ratio if ratio > 0 else "", r["median_collide_ms"],
                mm(r["max_separation_m"]), mm(r["rms_separation_m"]),
                math.degrees(r["max_angle_rad"]), mm(r["max_penetration_m"]),
-               mm(r["last_second_penetration_m"]), mm(r["drift_m"]), html.escape(run_note(r))))
+               mm(r["last_second_penetration_m"]), mm(r["drift_m"]),
+               r.get("max_energy_gain_j", 0.0), r.get("max_energy_rise_j", 0.0),
+               html.escape(run_note(r))))
     return (
         "<table class='runs' data-scene='%s'><thead><tr><th>stepper</th><th>frames</th>"
         "<th>solve ms</th><th>&times; qs20</th><th>collide ms</th><th>max sep mm</th>"
         "<th>rms sep mm</th><th>max angle &deg;</th><th>max pen mm</th><th>settled pen mm</th>"
-        "<th>drift mm</th><th>note</th></tr></thead><tbody>%s</tbody></table>"
+        "<th>drift mm</th><th title='the most energy over the start'>E gain J</th>"
+        "<th title='the most energy gained since the lowest so far'>E rise J</th>"
+        "<th>note</th></tr></thead><tbody>%s</tbody></table>"
         % (html.escape(scene), "".join(rows)))
 
 
