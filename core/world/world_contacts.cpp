@@ -114,6 +114,11 @@ void World::addContact(const ContactManifold& manifold) {
     if (!p.position.allFinite() || !std::isfinite(p.separation) || !p.normal.allFinite()) {
       throw Error(who() + ": point " + std::to_string(i) + " is not finite");
     }
+    if (!(p.radiusA >= 0.0) || !(p.radiusB >= 0.0) || !std::isfinite(p.radiusA) ||
+        !std::isfinite(p.radiusB)) {
+      throw Error(who() + ": point " + std::to_string(i) +
+                  ": its surfaces' radii must be finite and >= 0");
+    }
     const double pn = p.normal.norm();
     if (pn > 0.0 && pn < 1e-9)
       throw Error(who() + ": point " + std::to_string(i) + " has a degenerate normal");

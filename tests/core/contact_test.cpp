@@ -389,6 +389,11 @@ TEST(Contact, BadContactsAndShapesAreRefused) {
   m.points[0].separation = NAN;
   EXPECT_THROW(world.addContact(m), Error);
   m.points[0].separation = 0.0;
+  m.points[0].radiusB = -0.1;
+  EXPECT_THROW(world.addContact(m), Error);
+  m.points[0].radiusB = INFINITY;
+  EXPECT_THROW(world.addContact(m), Error);
+  m.points[0].radiusB = 0.0;
   m.surface.restitution = 2.0;
   EXPECT_THROW(world.addContact(m), Error);
   m.surface.restitution = 0.0;
