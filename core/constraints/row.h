@@ -53,6 +53,7 @@ struct ConstraintRow {
   RowBias biasKind = RowBias::Baumgarte;
   bool angular = false;   // torque-like row (for feedback and breaking)
   bool spring = false;    // a physical spring (Softness::Stiffness): relax leaves it alone
+  bool bounced = false;   // restitution set its target: its impulse answered an impact
   std::uint8_t slot = 0;  // the joint's stable name for this row: warm starting follows it
 
   static constexpr std::int8_t kNoFriction = -1;
