@@ -191,6 +191,10 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_ISLAND_BLOCK_ROWS", v, 0, n)) {
     s.islandBlockRows = n;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_CONTACT_ISLAND_ROWS");
+      v && parseInt("BLOCKSTEP_CONTACT_ISLAND_ROWS", v, 0, n)) {
+    s.contactIslandRows = n;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_CHAIN_BLOCKS");
       v && parseInt("BLOCKSTEP_CHAIN_BLOCKS", v, 0, n, 1)) {
     s.chainBlocks = n != 0;
@@ -528,6 +532,16 @@ int dWorldGetBlockIslandBlockRows(dWorldID w) {
   return guarded(__func__, 0, [&] {
     const std::optional<int> rows = LockedWorld(w).settings().islandBlockRows;
     return rows ? *rows : currentSettings(w).islandBlockRows;
+  });
+}
+void dWorldSetBlockContactIslandRows(dWorldID w, int rows) {
+  if (!inRange(__func__, rows, 0, 4096)) return;
+  guarded(__func__, [&] { LockedWorld(w).settings().contactIslandRows = rows; });
+}
+int dWorldGetBlockContactIslandRows(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    const std::optional<int> rows = LockedWorld(w).settings().contactIslandRows;
+    return rows ? *rows : currentSettings(w).contactIslandRows;
   });
 }
 void dWorldSetBlockChainBlocks(dWorldID w, int on) {

@@ -58,6 +58,9 @@ struct BridgeSettings {
   // Islands larger than that cut into chains (SolverSettings::chainBlocks;
   // unset: the solver's own).
   std::optional<bool> chainBlocks;
+  // Contact islands as one exact block up to this many normal rows
+  // (SolverSettings::contactIslandRows; unset: the solver's own).
+  std::optional<int> contactIslandRows;
   // The turn per sub-step above which a step runs more sub-steps
   // (SolverSettings::maxTurnPerSubstep; unset: the solver's own).
   std::optional<double> maxTurnPerSubstep;

@@ -26,6 +26,10 @@ struct SolverSettings {
   // 64-link ball chain, a few ragdolls joined by contacts. The factor's
   // memory is rows^2 doubles (300 KB here).
   static constexpr int kIslandBlockRows = 192;
+  // Contact island blocks up to this many normal rows in the presets that
+  // use them: a stack of 16 boxes on four points each. The block is dense
+  // (3 rows^2 doubles, 96 KB here) and its factor costs rows^3 / 3.
+  static constexpr int kContactIslandRows = 64;
   // Most sweeps of the direct preset: the bounded rows of a resting stack
   // or a limit pressed by a chain converge within this many.
   static constexpr int kDirectSweeps = 200;
@@ -120,6 +124,15 @@ struct SolverSettings {
   // 14 -> 5 mm) at 1.5-1.8 times the solve time, and per-joint blocks
   // given that time as more sub-steps do as well or better (README).
   bool chainBlocks = false;
+  // Solve an island of contacts (no joints, no restitution) with at most
+  // this many normal rows as one exact block: an active set of the points
+  // that push, solved with the LDL^T of the island's K (contact_island.h).
+  // Exact whatever the mass ratios, where Gauss-Seidel needs about as
+  // many sweeps as the ratio (a 1000 kg block on a 1 kg plank sank
+  // through it). Its rows are rigid and rest kRestDepth deep. Larger
+  // islands, and those with joints, keep one block per manifold. 0: off,
+  // the paper's.
+  int contactIslandRows = 0;
   // Threads that sweep independent islands at once (TBB): the result is
   // bitwise the same whatever the count, as islands share no movable
   // body. 1: the calling thread only; 0: one per core (also the most).
@@ -176,6 +189,7 @@ struct SolverSettings {
   static SolverSettings subStepped(int substeps) {
     SolverSettings s;
     s.islandBlockRows = kIslandBlockRows;
+    s.contactIslandRows = kContactIslandRows;
     s.substeps = substeps;
     s.iterations = 1;
     s.relaxIterations = 1;

@@ -695,6 +695,8 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
   // Grows only while warming up.
   if (blockMatrices_.size() < matrixSize) blockMatrices_.resize(matrixSize);
   matrixCount_ = matrixSize;
+  // Before the rows' error is kept for carried sub-steps (rest depth).
+  selectContactIslands(in, s);
   useIslandBlock_ = s.blockMode == BlockMode::Block && s.islandBlockRows > 1;
   if (useIslandBlock_) {
     // Islands and their joints stay the same over a step's sub-steps:
@@ -771,11 +773,33 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     finishBlock(s, h, blocks_[bi], inIslandBlock && islandBlocks().covers(islandOfBlock_[bi]),
                 inIslandBlock, inIslandBlock && islandBlocks().solvesBounded(islandOfBlock_[bi]));
   });
+  if (contactIslandRows_ > 0) contactIslands_.prepare(blocks_, rows_, bodies_);
   if (useIslandBlock_) {
     islandBlocks().prepareFactors();
     forEachIndex(
         islandBlocks().count(),
         [&](int k) { islandBlocks().factorOne(k, blocks_, rows_, bodies_); }, 1);
+  }
+}
+
+// The islands whose contact normals are one block this prepare
+// (SolverSettings::contactIslandRows, contact_island.h): islands of
+// contacts that do not bounce. Their points rest kRestDepth deep: each
+// row's error counts from there.
+void Solver::selectContactIslands(const StepInput& in, const SolverSettings& s) {
+  contactIslandRows_ = s.blockMode == BlockMode::Block ? s.contactIslandRows : 0;
+  if (contactIslandRows_ <= 0) return;
+  contactIslands_.select(blocks_, islandStart_, islandBegin_, islandEnd_, dummy_,
+                         contactIslandRows_, [&](const ConstraintBlock& blk) {
+                           const ContactSurface& surface = in.contacts[blk.contact].surface;
+                           return surface.restitution <= 0.0 &&
+                                  surface.softness.mode != Softness::Mode::Stiffness;
+                         });
+  for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
+    const ConstraintBlock& blk = blocks_[bi];
+    if (!contactIslands_.covers(islandOfBlock_[bi])) continue;
+    for (int i = 0; i < blk.equality; ++i)
+      rows_[blk.firstRow + i].C += ContactIslands::kRestDepth;
   }
 }
 
@@ -1119,6 +1143,10 @@ double Solver::blockSpringShare(const SolverSettings& s, double h, const Constra
 // equality (or contact normal) rows and its LDL^T.
 void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk,
                          bool inIslandBlock, bool inGroup, bool islandSolvesAll) {
+  // An island's contact block solves its normals exactly: they are rigid
+  // (contact_island.h).
+  const bool rigidNormals = blk.unilateral && contactIslandRows_ > 0 &&
+                            contactIslands_.covers(islandOfBlock_[&blk - blocks_.data()]);
   const SolverBody& a = bodies_[blk.bodyA];
   const SolverBody& b = bodies_[blk.bodyB];
   ConstraintRow* rows = &rows_[blk.firstRow];
@@ -1160,7 +1188,7 @@ void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk
             !apart || (rowsCarriable_ && row.softness) ? penetrationRate(row, blk, h) : 0.0;
         carriedBiasRate_[&row - rows_.data()] = rate;
         setSpeculativeBias(row, rate, h);
-        if (!apart) {
+        if (!apart && !rigidNormals) {
           const SoftnessAtStep& soft = ratesOf(*row.softness, h, cache);
           row.gamma = soft.gamma(kDiag);
           row.gammaShare = soft.massRelative ? soft.gammaUnit() : 0.0;
@@ -1316,6 +1344,7 @@ void Solver::warmStart() {
 
 void Solver::sweep(int island, bool useBias, BlockMode mode) {
   const bool islandBounded = useIslandBlock_ && islandBlocks().solvesBounded(island);
+  const bool contactIsland = contactIslandRows_ > 0 && contactIslands_.covers(island);
   for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
     ConstraintBlock& blk = blocks_[bi];
     SolverBody& a = bodies_[blk.bodyA];
@@ -1323,7 +1352,10 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     ConstraintRow* rows = &rows_[blk.firstRow];
     const int ne = blk.equality;
     if (blk.unilateral) {
-      solveContact(blk, useBias, mode, a, b);
+      if (contactIsland)
+        solveFriction(blk, useBias, a, b);
+      else
+        solveContact(blk, useBias, mode, a, b);
       continue;
     }
     if (mode == BlockMode::RowByRow) {
@@ -1347,6 +1379,15 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
       islandBlocks().solve(g, useBias, blocks_, rows_, bodies_);
   }
   if (islandBounded) islandBlocks().solveBounded(island, useBias, blocks_, rows_, bodies_);
+  // The island's contact normals at once, after its friction; the
+  // manifolds finish what it leaves (contact_island.h).
+  if (contactIsland && contactIslands_.solve(island, useBias, blocks_, rows_, bodies_) !=
+                           ContactIslands::Outcome::Exact) {
+    for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
+      ConstraintBlock& blk = blocks_[bi];
+      if (blk.unilateral) solveNormals(blk, useBias, mode, bodies_[blk.bodyA], bodies_[blk.bodyB]);
+    }
+  }
 }
 
 // Section 4.3: (J M^-1 J^T + c/h) dP = -(J v + b + gamma P) for the whole

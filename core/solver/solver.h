@@ -17,6 +17,7 @@
 #include "core/constraints/joint.h"
 #include "core/constraints/parts/row_writer.h"
 #include "core/constraints/row.h"
+#include "core/solver/contact_island.h"
 #include "core/solver/island_block.h"
 #include "core/solver/runaway_guard.h"
 #include "core/solver/settings.h"
@@ -125,6 +126,7 @@ class Solver {
   static constexpr double kUnmetResidual = 1e-3;
   double blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
                           bool inIslandBlock, SoftnessCache& cache) const;
+  void selectContactIslands(const StepInput& in, const SolverSettings& s);
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk, bool inIslandBlock,
                    bool inGroup, bool islandSolvesAll);
   // J v with the velocities the (sub-)step started from.
@@ -225,6 +227,10 @@ class Solver {
   // class whose selection is in use.
   std::vector<IslandBlocks> islandBlocksOf_ = std::vector<IslandBlocks>(1);
   std::size_t islandBlocksInUse_ = 0;
+  // Islands whose contact normals are one exact block (contact_island.h)
+  // in the class being stepped, and the settings' bound (0: none).
+  ContactIslands contactIslands_;
+  int contactIslandRows_ = 0;
   IslandBlocks& islandBlocks() { return islandBlocksOf_[islandBlocksInUse_]; }
   const IslandBlocks& islandBlocks() const { return islandBlocksOf_[islandBlocksInUse_]; }
   // How a bounded row's impulse moves the bodies and its joint's equality

@@ -294,6 +294,69 @@ TEST(Contact, HeavyOnLightAndLightUnderHeavyDoNotSink) {
   EXPECT_NEAR(world.body(legB).position.z(), 0.25, 0.005 + 1e-3);
 }
 
+// A 1000 kg block on a 1 kg plank laid across two supports (the compare
+// runner's plank_load, natively). Gauss-Seidel between the manifolds
+// passes the plank only its own share of the load per sweep: the supports
+// need about a thousand sweeps to carry the block, and the plank is pushed
+// through them. The island's normal rows as one exact block
+// (contactIslandRows, on in the sub-stepped preset) hold it at any
+// sub-step count; the block's weight is spread evenly over its four
+// corners (the least-norm impulses of a face: the rows are dependent).
+struct PlankLoad {
+  double blockDrop = 0.0;     // m, after 5 s
+  double deepest = 0.0;       // m, over the run
+  double cornerSpread = 0.0;  // largest / smallest of the block's corner impulses
+};
+PlankLoad plankLoad(int substeps, int contactIslandRows) {
+  World world;
+  SolverSettings s = SolverSettings::subStepped(substeps);
+  s.contactIslandRows = contactIslandRows;
+  world.setSettings(s);
+  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  for (double x : {-0.8, 0.8}) {
+    Shape support = Shape::box(kWorldBody, Vec3(0.1, 0.2, 0.25));
+    support.localPosition = Vec3(x, 0.0, 0.25);
+    world.addShape(support);
+  }
+  addBox(world, Vec3(0, 0, 0.525), 1.0, Vec3(1.0, 0.15, 0.025));  // the plank
+  const BodyId block = addBox(world, Vec3(0, 0, 0.75), 1000.0, Vec3(0.2, 0.2, 0.2));
+  PlankLoad out;
+  for (int i = 0; i < 300; ++i) {
+    world.step(1.0 / 60.0);
+    for (const ContactManifold& m : world.contacts()) {
+      for (int k = 0; k < m.pointCount; ++k)
+        out.deepest = std::max(out.deepest, -m.points[k].separation);
+    }
+  }
+  out.blockDrop = 0.75 - world.body(block).position.z();
+  for (const ContactManifold& m : world.contacts()) {
+    if (m.bodyA != block && m.bodyB != block) continue;
+    double lo = kInf, hi = 0.0;
+    for (int k = 0; k < m.pointCount; ++k) {
+      lo = std::min(lo, m.points[k].normalImpulse);
+      hi = std::max(hi, m.points[k].normalImpulse);
+    }
+    out.cornerSpread = m.pointCount == 4 && lo > 0.0 ? hi / lo : kInf;
+  }
+  return out;
+}
+
+TEST(Contact, ThousandKilogramsOnAOneKilogramPlankRestAtAnySubstepCount) {
+  for (int substeps : {1, 2, 10}) {
+    const PlankLoad block = plankLoad(substeps, SolverSettings::kContactIslandRows);
+    const PlankLoad manifolds = plankLoad(substeps, 0);
+    std::printf(
+        "%2d sub-steps: block drops %.3f mm (deepest %.3f mm, corners within %.4f); "
+        "manifold by manifold %.1f mm (deepest %.1f mm)\n",
+        substeps, 1e3 * block.blockDrop, 1e3 * block.deepest, block.cornerSpread,
+        1e3 * manifolds.blockDrop, 1e3 * manifolds.deepest);
+    EXPECT_LT(std::abs(block.blockDrop), 1e-4) << substeps;
+    EXPECT_LT(block.deepest, 1e-4) << substeps;
+    EXPECT_LT(block.cornerSpread, 1.01) << substeps;
+    EXPECT_GT(manifolds.blockDrop, 0.01) << substeps;  // what the block is for
+  }
+}
+
 TEST(Contact, WarmStartingCutsTheSweepsAStackNeeds) {
   auto sweeps = [](bool warm) {
     World world;
@@ -473,15 +536,17 @@ TEST(Contact, RollingResistanceStopsARollingBall) {
 
 TEST(Contact, WarmStartingCutsTheSweepsTheTenBoxStackNeeds) {
   // The sub-stepped solver, up to 30 sweeps per sub-step until every
-  // residual is below 1 mm/s: warm started the stack needs a couple per
-  // sub-step, cold it never gets there.
-  auto sweeps = [](bool warm) {
+  // residual is below 1 mm/s. Gauss-Seidel over the manifolds (no contact
+  // island block): warm started the stack needs a couple per sub-step,
+  // cold it never gets there. Its island as one block: one, either way.
+  auto sweeps = [](bool warm, int contactIslandRows = 0) {
     scenes::Scene scene;
     scenes::makeScene("stack", scene);
     SolverSettings s = SolverSettings::subStepped(20);
     s.iterations = 30;
     s.tolerance = 1e-3;
     s.warmStarting = warm;
+    s.contactIslandRows = contactIslandRows;
     scene.world.setSettings(s);
     int total = 0;
     for (int f = 0; f < 180; ++f) {
@@ -494,6 +559,11 @@ TEST(Contact, WarmStartingCutsTheSweepsTheTenBoxStackNeeds) {
   std::printf("10-box stack, sweeps per sub-step to 1e-3: warm %.1f, cold %.1f\n", warm, cold);
   EXPECT_LT(warm, 4.0);
   EXPECT_GT(cold, 20.0);
+  const int rows = SolverSettings::kContactIslandRows;
+  const double blockWarm = sweeps(true, rows), blockCold = sweeps(false, rows);
+  std::printf("as one contact block: warm %.1f, cold %.1f\n", blockWarm, blockCold);
+  EXPECT_EQ(blockWarm, 1.0);
+  EXPECT_EQ(blockCold, 1.0);
 }
 
 // SCENES.md's stack and pyramid, 2000 frames (33 s) under the sub-stepped

@@ -65,6 +65,16 @@ ODE_API void dWorldSetBlockRecordResiduals(dWorldID w, int on);
  * dWorldStep, 0 in the paper preset). BLOCKSTEP_ISLAND_BLOCK_ROWS. */
 ODE_API void dWorldSetBlockIslandBlockRows(dWorldID w, int rows);
 ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
+/* Solve an island of contacts (no joints, no bounce, no soft_cfm spring)
+ * with at most this many contact points as one exact block: the points
+ * that push, found by an active set, solved with the LDL^T of the
+ * island's K, whatever the mass ratios (a 1000 kg block on a 1 kg plank
+ * holds). 0: each contact's points one block, Gauss-Seidel between them.
+ * Holds under every solver; the default is the solver's own (64 points
+ * sub-stepped, 0 for dWorldStep and the paper preset).
+ * BLOCKSTEP_CONTACT_ISLAND_ROWS. */
+ODE_API void dWorldSetBlockContactIslandRows(dWorldID w, int rows);
+ODE_API int dWorldGetBlockContactIslandRows(dWorldID w);
 /* Cut an island with more joint rows than that (a cloth, a lattice) into
  * chains of joints, each of at most that many rows and solved as one
  * exact block inside the sweeps (1), or keep one block per joint (0, the

@@ -1,0 +1,353 @@
+#include "core/solver/contact_island.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/solver/row_ops.h"
+
+namespace blockstep {
+namespace {
+
+// K_ij = J_i M^-1 J_j^T: the sum over the bodies both rows act on.
+double rowCoupling(const ConstraintRow& ri, const ConstraintBlock& pi, const ConstraintRow& rj,
+                   const ConstraintBlock& pj, const std::vector<SolverBody>& bodies) {
+  double k = 0.0;
+  for (int sideI = 0; sideI < 2; ++sideI) {
+    const std::int32_t body = sideI == 0 ? pi.bodyA : pi.bodyB;
+    if (bodies[body].invMass == 0.0) continue;
+    const Vec3& linI = sideI == 0 ? ri.linA : ri.linB;
+    const Vec3& angI = sideI == 0 ? ri.angA : ri.angB;
+    for (int sideJ = 0; sideJ < 2; ++sideJ) {
+      if ((sideJ == 0 ? pj.bodyA : pj.bodyB) != body) continue;
+      const Vec3& linJ = sideJ == 0 ? rj.linA : rj.linB;
+      const Vec3& invIangJ = sideJ == 0 ? rj.invIangA : rj.invIangB;
+      k += bodies[body].invMass * linI.dot(linJ) + angI.dot(invIangJ);
+    }
+  }
+  return k;
+}
+
+// A pivot below this share of its row's diagonal is taken for zero: the
+// row depends on earlier ones. Exact dependencies leave 1e-16; nearly
+// repeated points of two manifolds on one pair of boxes left 1e-9 to
+// 1e-7, and kept, their tiny pivots turned rounding into impulses of 1e9.
+// A light body under a heavy one leaves its mass ratio (1e-3 for the
+// 1000:1 plank), which this keeps up to a million to one.
+constexpr double kDependentPivot = 1e-6;
+
+// LDL^T of an m x m symmetric matrix (lower triangle, column-major) in
+// place: unit L below the diagonal, 1/D on it, 0 where the pivot was
+// dropped (kDependentPivot). Row i of the matrix is zero left of
+// first[i] (its profile), and so is L's: the loops skip it.
+void factorProfile(double* F, int m, const std::int32_t* first) {
+  for (int j = 0; j < m; ++j) {
+    const double diag = F[j + m * j];
+    double d = diag;
+    for (int k = first[j]; k < j; ++k)
+      d -= F[j + m * k] * F[j + m * k] * F[k + m * k];
+    const bool kept = diag > 0.0 && d > kDependentPivot * diag;
+    const double invD = kept ? 1.0 / d : 0.0;
+    for (int i = j + 1; i < m; ++i) {
+      if (first[i] > j) continue;
+      double s = F[i + m * j];
+      for (int k = std::max(first[i], first[j]); k < j; ++k)
+        s -= F[i + m * k] * F[j + m * k] * F[k + m * k];
+      F[i + m * j] = s * invD;
+    }
+    F[j + m * j] = kept ? d : 0.0;  // D for the columns still to come
+  }
+  for (int j = 0; j < m; ++j)
+    F[j + m * j] = F[j + m * j] > 0.0 ? 1.0 / F[j + m * j] : 0.0;
+}
+
+// x = K^-1 x with the factor (a dropped row's equation left out).
+void solveProfile(const double* F, int m, const std::int32_t* first, double* x) {
+  for (int i = 1; i < m; ++i)
+    for (int k = first[i]; k < i; ++k)
+      x[i] -= F[i + m * k] * x[k];
+  for (int i = 0; i < m; ++i)
+    x[i] *= F[i + m * i];
+  for (int i = m - 1; i > 0; --i)
+    for (int k = first[i]; k < i; ++k)
+      x[k] -= F[i + m * k] * x[i];
+}
+
+// Removes x's part along each of the orthonormal vectors (vector k spans
+// rows [begin[k], end[k]) of m); returns the largest entry removed.
+double projectOut(const double* basis, int count, int m, const std::int32_t* begin,
+                  const std::int32_t* end, double* x) {
+  double removed = 0.0;
+  for (int k = 0; k < count; ++k) {
+    const double* u = basis + static_cast<std::size_t>(k) * m;
+    double dot = 0.0;
+    for (int i = begin[k]; i < end[k]; ++i)
+      dot += x[i] * u[i];
+    for (int i = begin[k]; i < end[k]; ++i) {
+      x[i] -= dot * u[i];
+      removed = std::max(removed, std::abs(dot * u[i]));
+    }
+  }
+  return removed;
+}
+
+// An inactive point joins the set once it would sink faster than this
+// (m/s), and targets missed by more than kUnmetTarget send the manifolds
+// to finish them (Solver::kUnmetResidual's measure).
+constexpr double kSinkTolerance = 1e-9;
+constexpr double kUnmetTarget = 1e-3;
+
+}  // namespace
+
+void ContactIslands::addGroup(int island, const std::vector<ConstraintBlock>& blocks,
+                              const std::vector<std::int32_t>& islandStart, std::int32_t staticBody,
+                              int rows) {
+  Group g;
+  g.firstEntry = static_cast<std::int32_t>(entryRow_.size());
+  g.size = rows;
+  if (!groups_.empty()) {
+    const Group& last = groups_.back();
+    g.matrix = last.matrix + 3 * static_cast<std::size_t>(last.size) * last.size;
+  }
+  const std::int32_t first = islandStart[island];
+  const std::int32_t count = islandStart[island + 1] - first;
+  incidence_.clear();
+  std::int32_t start = 0;
+  for (std::int32_t k = 0; k < count; ++k) {
+    const ConstraintBlock& blk = blocks[first + k];
+    for (const std::int32_t body : {blk.bodyA, blk.bodyB}) {
+      if (body != staticBody) incidence_.emplace_back(body, k);
+    }
+    if (blk.bodyA == staticBody || blk.bodyB == staticBody) start = k;
+  }
+  std::sort(incidence_.begin(), incidence_.end());
+  order_.assign(1, start);
+  taken_.assign(static_cast<std::size_t>(count), 0);
+  taken_[start] = 1;
+  for (std::size_t q = 0; q < order_.size(); ++q) {
+    const ConstraintBlock& blk = blocks[first + order_[q]];
+    for (const std::int32_t body : {blk.bodyA, blk.bodyB}) {
+      auto it = std::lower_bound(incidence_.begin(), incidence_.end(), std::make_pair(body, 0));
+      for (; it != incidence_.end() && it->first == body; ++it) {
+        if (taken_[it->second]) continue;
+        taken_[it->second] = 1;
+        order_.push_back(it->second);
+      }
+    }
+  }
+  for (std::int32_t k = 0; k < count; ++k) {  // an island is connected; kept safe
+    if (!taken_[k]) order_.push_back(k);
+  }
+  for (const std::int32_t k : order_) {
+    const ConstraintBlock& blk = blocks[first + k];
+    for (int i = 0; i < blk.equality; ++i) {
+      entryRow_.push_back(blk.firstRow + i);
+      entryBlock_.push_back(first + k);
+    }
+  }
+  groupOfIsland_[island] = static_cast<std::int32_t>(groups_.size());
+  groups_.push_back(g);
+}
+
+void ContactIslands::prepare(const std::vector<ConstraintBlock>& blocks,
+                             const std::vector<ConstraintRow>& rows,
+                             const std::vector<SolverBody>& bodies) {
+  if (groups_.empty()) return;
+  const Group& last = groups_.back();
+  const std::size_t storage = last.matrix + 3 * static_cast<std::size_t>(last.size) * last.size;
+  // Grow only while warming up.
+  if (storage_.size() < storage) storage_.resize(storage);
+  if (scratch_.size() < 4 * entryRow_.size()) scratch_.resize(4 * entryRow_.size());
+  if (active_.size() < entryRow_.size()) {
+    active_.resize(entryRow_.size());
+    activeList_.resize(entryRow_.size());
+    profileFirst_.resize(entryRow_.size());
+    nullBegin_.resize(entryRow_.size());
+    nullEnd_.resize(entryRow_.size());
+  }
+  for (Group& g : groups_) {
+    const int n = g.size;
+    const std::int32_t* rowOf = &entryRow_[g.firstEntry];
+    const std::int32_t* blockOf = &entryBlock_[g.firstEntry];
+    double* K = kOf(g);  // full, K[i n + j]
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j <= i; ++j) {
+        K[i * n + j] = K[j * n + i] = rowCoupling(rows[rowOf[i]], blocks[blockOf[i]],
+                                                  rows[rowOf[j]], blocks[blockOf[j]], bodies);
+      }
+    }
+    // The points touching (C holds the rest depth) push; those apart join
+    // when they would close.
+    std::uint8_t* active = &active_[g.firstEntry];
+    std::int32_t* list = &activeList_[g.firstEntry];
+    g.activeCount = 0;
+    for (int i = 0; i < n; ++i) {
+      active[i] = rows[rowOf[i]].C <= kRestDepth;
+      if (active[i]) list[g.activeCount++] = i;
+    }
+    g.factorStale = true;
+  }
+}
+
+void ContactIslands::factorActive(Group& g) {
+  const int n = g.size, m = g.activeCount;
+  const double* K = kOf(g);
+  const std::int32_t* list = &activeList_[g.firstEntry];
+  std::int32_t* first = &profileFirst_[g.firstEntry];
+  double* F = factorOf(g);
+  for (int a = 0; a < m; ++a) {
+    const double* Ka = K + static_cast<std::size_t>(list[a]) * n;
+    first[a] = a;
+    for (int b = 0; b <= a; ++b) {
+      F[a + m * b] = Ka[list[b]];
+      if (first[a] == a && Ka[list[b]] != 0.0) first[a] = b;
+    }
+  }
+  factorProfile(F, m, first);
+  // Each dropped pivot j gives a null vector: L^T u = e_j, so K u =
+  // L D e_j = 0. A face's warp spans that face's points alone. Made
+  // orthonormal, leaving them out is a projection.
+  double* basis = nullsOf(g);
+  std::int32_t* begin = &nullBegin_[g.firstEntry];
+  std::int32_t* end = &nullEnd_[g.firstEntry];
+  g.nullCount = 0;
+  for (int j = 0; j < m; ++j) {
+    if (F[j + m * j] != 0.0) continue;
+    const int k = g.nullCount;
+    double* u = basis + static_cast<std::size_t>(k) * m;
+    std::fill(u, u + m, 0.0);
+    u[j] = 1.0;
+    begin[k] = j;
+    end[k] = j + 1;
+    for (int i = j; i > 0; --i) {
+      if (u[i] == 0.0) continue;
+      for (int c = first[i]; c < i; ++c)
+        u[c] -= F[i + m * c] * u[i];
+      begin[k] = std::min(begin[k], first[i]);
+    }
+    for (int b = 0; b < k; ++b) {
+      const double* ub = basis + static_cast<std::size_t>(b) * m;
+      const int lo = std::max(begin[k], begin[b]), hi = std::min(end[k], end[b]);
+      double dot = 0.0;
+      for (int i = lo; i < hi; ++i)
+        dot += u[i] * ub[i];
+      if (dot == 0.0) continue;
+      for (int i = begin[b]; i < end[b]; ++i)
+        u[i] -= dot * ub[i];
+      begin[k] = std::min(begin[k], begin[b]);
+      end[k] = std::max(end[k], end[b]);
+    }
+    double norm = 0.0;
+    for (int i = begin[k]; i < end[k]; ++i)
+      norm += u[i] * u[i];
+    if (!(norm > 1e-24)) continue;
+    const double scale = 1.0 / std::sqrt(norm);
+    for (int i = begin[k]; i < end[k]; ++i)
+      u[i] *= scale;
+    ++g.nullCount;
+  }
+  g.factorStale = false;
+}
+
+ContactIslands::Outcome ContactIslands::solve(int island, bool useBias,
+                                              const std::vector<ConstraintBlock>& blocks,
+                                              std::vector<ConstraintRow>& rows,
+                                              std::vector<SolverBody>& bodies) {
+  Group& g = groups_[groupOfIsland_[island]];
+  const int n = g.size;
+  const std::int32_t* rowOf = &entryRow_[g.firstEntry];
+  const std::int32_t* blockOf = &entryBlock_[g.firstEntry];
+  std::uint8_t* active = &active_[g.firstEntry];
+  std::int32_t* list = &activeList_[g.firstEntry];
+  const double* K = kOf(g);
+  double* residual = &scratch_[4 * static_cast<std::size_t>(g.firstEntry)];
+  double* change = residual + n;  // each row's impulse change
+  double* x = change + n;         // the active rows' (active-set order)
+  double* next = x + n;
+  for (int i = 0; i < n; ++i) {
+    const ConstraintRow& row = rows[rowOf[i]];
+    const ConstraintBlock& blk = blocks[blockOf[i]];
+    residual[i] = rowResidual(row, useBias, bodies[blk.bodyA], bodies[blk.bodyB]);
+  }
+  for (int round = 0; round < kMaxRounds; ++round) {
+    if (g.factorStale) factorActive(g);
+    const int m = g.activeCount;
+    // Inactive points let go of what they hold (most hold nothing).
+    int letGo = 0;
+    for (int i = 0; i < n; ++i) {
+      change[i] = active[i] ? 0.0 : -rows[rowOf[i]].impulse;
+      letGo += change[i] != 0.0;
+    }
+    for (int a = 0; a < m; ++a) {
+      double r = residual[list[a]];
+      if (letGo > 0) {
+        const double* Ki = K + static_cast<std::size_t>(list[a]) * n;
+        for (int j = 0; j < n; ++j)
+          r += Ki[j] * change[j];
+      }
+      x[a] = -r;
+    }
+    const std::int32_t* begin = &nullBegin_[g.firstEntry];
+    const std::int32_t* end = &nullEnd_[g.firstEntry];
+    const double unmet = projectOut(nullsOf(g), g.nullCount, m, begin, end, x);
+    solveProfile(factorOf(g), m, &profileFirst_[g.firstEntry], x);
+    for (int a = 0; a < m; ++a)
+      next[a] = rows[rowOf[list[a]]].impulse + x[a];
+    projectOut(nullsOf(g), g.nullCount, m, begin, end, next);  // the least-norm impulses
+    double largest = 0.0;
+    for (int a = 0; a < m; ++a)
+      largest = std::max(largest, std::abs(next[a]));
+    const double pullTolerance = 1e-9 * largest + 1e-12;
+    // Points that would pull leave the set.
+    int kept = 0;
+    for (int a = 0; a < m; ++a) {
+      if (next[a] < -pullTolerance) {
+        active[list[a]] = 0;
+      } else {
+        next[kept] = next[a];
+        list[kept++] = list[a];
+      }
+    }
+    if (kept < m) {
+      g.activeCount = kept;
+      g.factorStale = true;
+      continue;
+    }
+    for (int a = 0; a < m; ++a)
+      change[list[a]] = std::max(next[a], 0.0) - rows[rowOf[list[a]]].impulse;
+    // The inactive point that would sink most joins the set.
+    int sinking = -1;
+    double deepest = -kSinkTolerance;
+    for (int i = 0; i < n; ++i) {
+      if (active[i]) continue;
+      const double* Ki = K + static_cast<std::size_t>(i) * n;
+      double w = residual[i];
+      for (int j = 0; j < n; ++j)
+        w += Ki[j] * change[j];
+      if (w < deepest) {
+        deepest = w;
+        sinking = i;
+      }
+    }
+    if (sinking >= 0) {
+      // In island order, to keep the factor's profile.
+      active[sinking] = 1;
+      int at = g.activeCount++;
+      for (; at > 0 && list[at - 1] > sinking; --at)
+        list[at] = list[at - 1];
+      list[at] = sinking;
+      g.factorStale = true;
+      continue;
+    }
+    for (int i = 0; i < n; ++i) {
+      if (change[i] == 0.0) continue;
+      ConstraintRow& row = rows[rowOf[i]];
+      const ConstraintBlock& blk = blocks[blockOf[i]];
+      row.impulse += change[i];
+      applyImpulse(row, change[i], bodies[blk.bodyA], bodies[blk.bodyB]);
+    }
+    return unmet > kUnmetTarget ? Outcome::Unmet : Outcome::Exact;
+  }
+  return Outcome::Unsolved;
+}
+
+}  // namespace blockstep
