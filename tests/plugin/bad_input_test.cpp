@@ -156,7 +156,17 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   const dReal refreshTurn = dWorldGetBlockRefreshTurn(p.s.world);
   dWorldSetBlockRefreshTurn(p.s.world, -0.5);
   dWorldSetBlockRefreshTurn(p.s.world, std::nan(""));
+  const int contactRows = dWorldGetBlockContactIslandRows(p.s.world);
+  dWorldSetBlockContactIslandRows(p.s.world, -3);
+  dWorldSetBlockContactIslandRows(p.s.world, 100000);
   const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(contactRows, 64);  // the sub-stepped preset's
+  EXPECT_EQ(dWorldGetBlockContactIslandRows(p.s.world), contactRows);
+  EXPECT_NE(err.find("dWorldSetBlockContactIslandRows(-3): expected 0 to 4096"), std::string::npos)
+      << err;
+  EXPECT_NE(err.find("dWorldSetBlockContactIslandRows(100000): expected 0 to 4096"),
+            std::string::npos)
+      << err;
   EXPECT_NE(err.find("dWorldSetBlockRefreshTurn(-0.5): expected an angle >= 0"), std::string::npos)
       << err;
   EXPECT_NE(err.find("dWorldSetBlockRefreshTurn(nan): expected an angle >= 0"), std::string::npos)

@@ -117,15 +117,58 @@ TEST(OdeContacts, StackOnFourPointsRestsAtAnySubstepCount) {
     std::printf("  10 boxes 1 mm deep, %d sub-steps: top drift %.3g mm, top %+.3g mm\n", substeps,
                 drift * 1e3, rise * 1e3);
     EXPECT_LT(drift, 1e-3);
-    // The contacts settle under the load at their sub-step compliance and
-    // the step's push-out rate: 7.6 mm over ten contacts at 5 sub-steps,
-    // 1.2 mm at 20 (quickstep 20 sinks six boxes 4.2 mm: preload test).
-    EXPECT_LT(std::abs(rise), 10e-3);
+    // The stack is one contact island, solved exactly: the bottom box is
+    // pushed out of the ground and every contact rests 10 um deep, so the
+    // top rises 1 mm less 0.1 mm. (Contact by contact, the contacts
+    // settled under the load at their sub-step compliance: the top sank
+    // 7.6 mm at 5 sub-steps, 1.2 mm at 20; quickstep 20 sinks six boxes
+    // 4.2 mm: preload test.)
+    EXPECT_NEAR(rise, depth - 10 * 1e-5, 0.05e-3);
     for (dBodyID b : boxes) {
       const dReal* v = dBodyGetLinearVel(b);
       EXPECT_LT(std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), 1e-2);
     }
   }
+}
+
+// A 1000 kg block on a 1 kg plank laid across two static supports, all
+// exactly touching (the compare runner's plank_load): dWorldStep holds it
+// (one LCP for the island); Gauss-Seidel contact by contact passes the
+// plank only its own share of the load a sweep, and the plank went
+// through the supports under every sub-stepped setting. As one contact
+// island the default holds it as dWorldStep does, at 1 and 10 sub-steps.
+TEST(OdeContacts, TonneOnAOneKilogramPlankRestsAsDirectSolver) {
+  auto drop = [](Stepper stepper, int substeps, int contactRows) {
+    ContactScene c;
+    for (double x : {-0.8, 0.8}) {
+      dGeomID support = dCreateBox(c.space, 0.2, 0.4, 0.5);
+      dGeomSetPosition(support, x, 0.0, 0.25);
+    }
+    dBodyID plank = dBodyCreate(c.scene.world);
+    dMass m;
+    dMassSetBoxTotal(&m, 1.0, 2.0, 0.3, 0.05);
+    dBodySetMass(plank, &m);
+    dBodySetPosition(plank, 0.0, 0.0, 0.525);
+    dGeomSetBody(dCreateBox(c.space, 2.0, 0.3, 0.05), plank);
+    const dBodyID block = c.box(0.0, 0.0, 0.75, 0.4, 1000.0);
+    dWorldSetBlockSubsteppedSolver(c.scene.world, substeps);
+    dWorldSetBlockContactIslandRows(c.scene.world, contactRows);
+    for (int f = 0; f < 300; ++f)
+      c.step(stepper);
+    return 0.75 - dBodyGetPosition(block)[2];
+  };
+  const double direct = drop(Stepper::Direct, 1, 64);
+  std::printf("  block drop after 5 s: dWorldStep %.3g mm", 1e3 * direct);
+  for (int substeps : {1, 10}) {
+    const double island = drop(Stepper::Block, substeps, 64);
+    const double manifolds = drop(Stepper::Block, substeps, 0);
+    std::printf(", %d sub-steps %.3g mm (contact by contact %.0f mm)", substeps, 1e3 * island,
+                1e3 * manifolds);
+    EXPECT_NEAR(island, direct, 1e-4) << substeps;
+    EXPECT_GT(manifolds, 0.01) << substeps;  // what the island block is for
+  }
+  std::printf("\n");
+  EXPECT_LT(std::abs(direct), 1e-4);
 }
 
 // Runs the contact scene built by `build` with dWorldStep and with
