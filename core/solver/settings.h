@@ -27,9 +27,13 @@ struct SolverSettings {
   // memory is rows^2 doubles (300 KB here).
   static constexpr int kIslandBlockRows = 192;
   // Contact island blocks up to this many normal rows in the presets that
-  // use them: a stack of 16 boxes on four points each. The block is dense
-  // (3 rows^2 doubles, 96 KB here) and its factor costs rows^3 / 3.
-  static constexpr int kContactIslandRows = 64;
+  // use them: a stack of 32 boxes on four points each. ODE gives a 10-box
+  // stack 40 to 68 points (some pairs more than four); at 64 the island
+  // fell back to Gauss-Seidel when it had more, and at one or two
+  // sub-steps the stack fell. The block is dense (3 rows^2 doubles, 384 KB
+  // here); its factor keeps within the rows' profile (a stack's K is
+  // banded).
+  static constexpr int kContactIslandRows = 128;
   // Most sweeps of the direct preset: the bounded rows of a resting stack
   // or a limit pressed by a chain converge within this many.
   static constexpr int kDirectSweeps = 200;

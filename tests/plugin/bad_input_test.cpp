@@ -160,7 +160,7 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   dWorldSetBlockContactIslandRows(p.s.world, -3);
   dWorldSetBlockContactIslandRows(p.s.world, 100000);
   const std::string err = testing::internal::GetCapturedStderr();
-  EXPECT_EQ(contactRows, 64);  // the sub-stepped preset's
+  EXPECT_EQ(contactRows, 128);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockContactIslandRows(p.s.world), contactRows);
   EXPECT_NE(err.find("dWorldSetBlockContactIslandRows(-3): expected 0 to 4096"), std::string::npos)
       << err;

@@ -70,7 +70,7 @@ ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
  * that push, found by an active set, solved with the LDL^T of the
  * island's K, whatever the mass ratios (a 1000 kg block on a 1 kg plank
  * holds). 0: each contact's points one block, Gauss-Seidel between them.
- * Holds under every solver; the default is the solver's own (64 points
+ * Holds under every solver; the default is the solver's own (128 points
  * sub-stepped, 0 for dWorldStep and the paper preset).
  * BLOCKSTEP_CONTACT_ISLAND_ROWS. */
 ODE_API void dWorldSetBlockContactIslandRows(dWorldID w, int rows);
