@@ -97,27 +97,59 @@ bool sameSurface(const ContactSurface& a, const ContactSurface& b) {
 }  // namespace
 
 void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactManifold>& out) {
+  ContactGrouping scratch;
+  groupContacts(in, out, scratch);
+}
+
+void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactManifold>& out,
+                   ContactGrouping& scratch) {
   out.clear();
-  for (const ContactManifold& c : in) {
-    ContactManifold* target = nullptr;
-    for (ContactManifold& m : out) {
-      // Rolling and spinning act about the manifold's one normal.
-      const bool along =
-          m.normal.dot(c.normal) > 0.999 || (c.surface.rolling == 0.0 && c.surface.spinning == 0.0);
-      if (m.bodyA == c.bodyA && m.bodyB == c.bodyB && m.pointCount < kMaxManifoldPoints && along &&
-          sameSurface(m.surface, c.surface)) {
-        target = &m;
-        break;
-      }
-    }
-    if (!target) {
-      out.push_back(c);
-      continue;
-    }
-    for (int i = 0; i < c.pointCount && target->pointCount < kMaxManifoldPoints; ++i) {
-      target->points[target->pointCount++] = c.points[i];
-    }
+  scratch.firstPoint.clear();
+  // The points by body pair, each pair's in ODE's order: a point can only
+  // join a manifold of its own pair, so each pair is grouped alone.
+  auto& byPair = scratch.byPair;
+  byPair.clear();
+  for (std::size_t k = 0; k < in.size(); ++k) {
+    const auto a = static_cast<std::uint32_t>(in[k].bodyA);
+    const auto b = static_cast<std::uint32_t>(in[k].bodyB);
+    byPair.emplace_back(std::uint64_t{a} << 32 | b, static_cast<std::int32_t>(k));
   }
+  std::sort(byPair.begin(), byPair.end());
+  for (std::size_t begin = 0; begin < byPair.size();) {
+    std::size_t end = begin;
+    while (end < byPair.size() && byPair[end].first == byPair[begin].first)
+      ++end;
+    scratch.pairManifolds.clear();
+    for (std::size_t k = begin; k < end; ++k) {
+      const ContactManifold& c = in[byPair[k].second];
+      ContactManifold* target = nullptr;
+      for (const std::int32_t index : scratch.pairManifolds) {
+        ContactManifold& m = out[index];
+        // Rolling and spinning act about the manifold's one normal.
+        const bool along = m.normal.dot(c.normal) > 0.999 ||
+                           (c.surface.rolling == 0.0 && c.surface.spinning == 0.0);
+        if (m.pointCount < kMaxManifoldPoints && along && sameSurface(m.surface, c.surface)) {
+          target = &m;
+          break;
+        }
+      }
+      if (!target) {
+        scratch.firstPoint.emplace_back(byPair[k].second, static_cast<std::int32_t>(out.size()));
+        scratch.pairManifolds.push_back(static_cast<std::int32_t>(out.size()));
+        out.push_back(c);
+        continue;
+      }
+      for (int i = 0; i < c.pointCount && target->pointCount < kMaxManifoldPoints; ++i)
+        target->points[target->pointCount++] = c.points[i];
+    }
+    begin = end;
+  }
+  // Back in the order of their first points, as ODE made them.
+  std::sort(scratch.firstPoint.begin(), scratch.firstPoint.end());
+  scratch.ordered.clear();
+  for (const auto& [point, index] : scratch.firstPoint)
+    scratch.ordered.push_back(out[index]);
+  out.swap(scratch.ordered);
 }
 
 }  // namespace blockstep::ode

@@ -17,6 +17,8 @@
 #include <ode/ode.h>
 #include "adapters/ode/clamped_input.h"
 
+#include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "core/constraints/contact.h"
@@ -56,7 +58,22 @@ MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
 // instead of being kicked sideways by the wall solved first. With rolling
 // or spinning resistance (about one normal) only points whose normals
 // agree within about 2.5 degrees are grouped. Merges `in` (one-point manifolds, in
-// ODE's order) into `out`, which is cleared first.
+// ODE's order) into `out`, which is cleared first: each point joins the
+// first manifold of its pair (in the order they were made) with room,
+// and the manifolds come out in the order of their first points.
 void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactManifold>& out);
+
+// The same with the caller's scratch, kept from step to step: a pile of
+// 1,000 bodies gives thousands of points, and scanning every manifold made
+// so far for each took 12% of its step.
+struct ContactGrouping {
+  std::vector<std::pair<std::uint64_t, std::int32_t>> byPair;  // (body pair, point)
+  std::vector<std::int32_t> pairManifolds;                     // the current pair's, in `out`
+  // Each manifold made, by the point it began with; and `out` in order.
+  std::vector<std::pair<std::int32_t, std::int32_t>> firstPoint;
+  std::vector<ContactManifold> ordered;
+};
+void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactManifold>& out,
+                   ContactGrouping& scratch);
 
 }  // namespace blockstep::ode

@@ -549,7 +549,7 @@ void WorldBridge::syncJoints(const WorldRecord& record) {
     const bool awake = (b1 && dBodyIsEnabled(b1)) || (b2 && dBodyIsEnabled(b2));
     if (!awake) pointContacts_[i].pointCount = 0;
   }
-  groupContacts(pointContacts_, manifolds_);
+  groupContacts(pointContacts_, manifolds_, grouping_);
   for (const ContactManifold& m : manifolds_) {
     if (m.pointCount > 0) core_.addContact(m);
   }

@@ -208,6 +208,7 @@ class WorldBridge {
   // Per step, reused.
   std::vector<JointRead> reads_;  // one per record.joints entry (contacts: unused)
   std::vector<ContactManifold> pointContacts_, manifolds_;
+  ContactGrouping grouping_;                                // groupContacts' scratch
   std::vector<std::pair<dBodyID, dBodyID>> contactBodies_;  // ODE body1, body2 of each point
   struct ContactFeedback {  // a contact joint whose dJointFeedback the program reads
     dJointFeedback* out;
