@@ -224,6 +224,17 @@ void ContactIslands::factorActive(Group& g) {
         u[c] -= F[i + m * c] * u[i];
       begin[k] = std::min(begin[k], first[i]);
     }
+    // Its rows: a face's warp spans that face's points, though the
+    // profile it was found through reaches further (rounding is left
+    // there: dropped, the projections keep to the face).
+    double largest = 0.0;
+    for (int i = begin[k]; i <= j; ++i)
+      largest = std::max(largest, std::abs(u[i]));
+    for (int i = begin[k]; i <= j; ++i) {
+      if (std::abs(u[i]) < 1e-12 * largest) u[i] = 0.0;
+    }
+    while (begin[k] < j && u[begin[k]] == 0.0)
+      ++begin[k];
     for (int b = 0; b < k; ++b) {
       const double* ub = basis + static_cast<std::size_t>(b) * m;
       const int lo = std::max(begin[k], begin[b]), hi = std::min(end[k], end[b]);
