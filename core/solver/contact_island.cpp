@@ -8,25 +8,6 @@
 namespace blockstep {
 namespace {
 
-// K_ij = J_i M^-1 J_j^T: the sum over the bodies both rows act on.
-double rowCoupling(const ConstraintRow& ri, const ConstraintBlock& pi, const ConstraintRow& rj,
-                   const ConstraintBlock& pj, const std::vector<SolverBody>& bodies) {
-  double k = 0.0;
-  for (int sideI = 0; sideI < 2; ++sideI) {
-    const std::int32_t body = sideI == 0 ? pi.bodyA : pi.bodyB;
-    if (bodies[body].invMass == 0.0) continue;
-    const Vec3& linI = sideI == 0 ? ri.linA : ri.linB;
-    const Vec3& angI = sideI == 0 ? ri.angA : ri.angB;
-    for (int sideJ = 0; sideJ < 2; ++sideJ) {
-      if ((sideJ == 0 ? pj.bodyA : pj.bodyB) != body) continue;
-      const Vec3& linJ = sideJ == 0 ? rj.linA : rj.linB;
-      const Vec3& invIangJ = sideJ == 0 ? rj.invIangA : rj.invIangB;
-      k += bodies[body].invMass * linI.dot(linJ) + angI.dot(invIangJ);
-    }
-  }
-  return k;
-}
-
 // A pivot below this share of its row's diagonal is taken for zero: the
 // row depends on earlier ones. Exact dependencies leave 1e-16; nearly
 // repeated points of two manifolds on one pair of boxes left 1e-9 to

@@ -14,26 +14,6 @@ bool immovable(const SolverBody& b) {
   return b.invMass == 0.0;
 }
 
-// K_ij = J_i M^-1 J_j^T: the sum over the bodies both rows act on.
-[[gnu::always_inline]] inline double coupling(const ConstraintRow& ri, const ConstraintBlock& pi,
-                                              const ConstraintRow& rj, const ConstraintBlock& pj,
-                                              const std::vector<SolverBody>& bodies) {
-  double k = 0.0;
-  for (int sideI = 0; sideI < 2; ++sideI) {
-    const std::int32_t body = sideI == 0 ? pi.bodyA : pi.bodyB;
-    if (immovable(bodies[body])) continue;
-    const Vec3& linI = sideI == 0 ? ri.linA : ri.linB;
-    const Vec3& angI = sideI == 0 ? ri.angA : ri.angB;
-    for (int sideJ = 0; sideJ < 2; ++sideJ) {
-      if ((sideJ == 0 ? pj.bodyA : pj.bodyB) != body) continue;
-      const Vec3& linJ = sideJ == 0 ? rj.linA : rj.linB;
-      const Vec3& invIangJ = sideJ == 0 ? rj.invIangA : rj.invIangB;
-      k += bodies[body].invMass * linI.dot(linJ) + angI.dot(invIangJ);
-    }
-  }
-  return k;
-}
-
 }  // namespace
 
 void IslandBlocks::selectIslands(const std::vector<ConstraintBlock>& blocks,
@@ -439,7 +419,7 @@ void IslandBlocks::factor(Group& g, const std::vector<ConstraintBlock>& blocks,
     const ConstraintBlock& pi = blocks[blockOf[i]];
     double* Ki = F + base[i];
     for (std::int32_t j = first[i]; j <= i; ++j)
-      Ki[j] = scaleK * coupling(ri, pi, rows[rowOf[j]], blocks[blockOf[j]], bodies);
+      Ki[j] = scaleK * rowCoupling(ri, pi, rows[rowOf[j]], blocks[blockOf[j]], bodies);
     if (mixed && pi.springShare > 0.0) ri.gamma = ri.gammaRelax = pi.springShare * Ki[i];
     Ki[i] += ri.gamma;
     scale = std::max(scale, std::abs(Ki[i]));
@@ -544,7 +524,7 @@ void IslandBlocks::coupleBounded(const Group& isl, const std::vector<ConstraintB
     const ConstraintBlock& blk = blocks[br.block];
     double* w = &weights_[br.weights];
     for (std::int32_t i = 0; i < n; ++i)
-      w[i] = coupling(rows[rowOf[i]], blocks[blockOf[i]], row, blk, bodies);
+      w[i] = rowCoupling(rows[rowOf[i]], blocks[blockOf[i]], row, blk, bodies);
     double kbb = rowDiagonal(row, bodies[blk.bodyA], bodies[blk.bodyB]);
     double uKu = 0.0;
     // u is kept beside w only long enough to form u . K^-1 u.

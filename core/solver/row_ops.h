@@ -1,7 +1,10 @@
 // What every solver stage does with one row: its velocity, its residual,
-// and applying an impulse along it. Shared by the per-joint blocks
-// (solver.cpp) and the island blocks (island_block.cpp).
+// its coupling with another row, and applying an impulse along it. Shared
+// by the per-joint blocks (solver.cpp), the island blocks
+// (island_block.cpp) and the contact islands (contact_island.cpp).
 #pragma once
+
+#include <vector>
 
 #include "core/constraints/row.h"
 #include "core/solver/solver_body.h"
@@ -26,6 +29,28 @@ inline void addVelocity(SolverBody& body, const Vec3& dv, const Vec3& dw) {
   if (body.invMass == 0.0) return;
   body.v += dv;
   body.w += dw;
+}
+
+// K_ij = J_i M^-1 J_j^T of rows i and j of blocks pi and pj: the sum over
+// the movable bodies both rows act on (the static frame and kinematic
+// bodies couple nothing).
+[[gnu::always_inline]] inline double rowCoupling(const ConstraintRow& ri, const ConstraintBlock& pi,
+                                                 const ConstraintRow& rj, const ConstraintBlock& pj,
+                                                 const std::vector<SolverBody>& bodies) {
+  double k = 0.0;
+  for (int sideI = 0; sideI < 2; ++sideI) {
+    const std::int32_t body = sideI == 0 ? pi.bodyA : pi.bodyB;
+    if (bodies[body].invMass == 0.0) continue;
+    const Vec3& linI = sideI == 0 ? ri.linA : ri.linB;
+    const Vec3& angI = sideI == 0 ? ri.angA : ri.angB;
+    for (int sideJ = 0; sideJ < 2; ++sideJ) {
+      if ((sideJ == 0 ? pj.bodyA : pj.bodyB) != body) continue;
+      const Vec3& linJ = sideJ == 0 ? rj.linA : rj.linB;
+      const Vec3& invIangJ = sideJ == 0 ? rj.invIangA : rj.invIangB;
+      k += bodies[body].invMass * linI.dot(linJ) + angI.dot(invIangJ);
+    }
+  }
+  return k;
 }
 
 inline void applyImpulse(const ConstraintRow& row, double dP, SolverBody& a, SolverBody& b) {
