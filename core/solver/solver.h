@@ -231,6 +231,7 @@ class Solver {
   // in the class being stepped, and the settings' bound (0: none).
   ContactIslands contactIslands_;
   int contactIslandRows_ = 0;
+  int islandFrictionPasses_ = 1;  // friction passes a sweep in contact islands (runSubsteps)
   IslandBlocks& islandBlocks() { return islandBlocksOf_[islandBlocksInUse_]; }
   const IslandBlocks& islandBlocks() const { return islandBlocksOf_[islandBlocksInUse_]; }
   // How a bounded row's impulse moves the bodies and its joint's equality
