@@ -307,6 +307,15 @@ SolverSettings currentSettings(dWorldID w) {
   return s.solver;
 }
 
+// A setting the world holds apart from its solver (ode::BridgeSettings:
+// it holds under every solver), or unset, the current solver's own.
+template <class T>
+T heldOrSolvers(dWorldID w, std::optional<T> ode::BridgeSettings::*held,
+                T SolverSettings::*solverOwn) {
+  const std::optional<T> value = LockedWorld(w).settings().*held;
+  return value ? *value : currentSettings(w).*solverOwn;
+}
+
 void sayOnce(WorldState& state, dWorldID w, const std::string& text, const char* consequence) {
   for (const std::string& s : state.said) {
     if (s == text) return;
@@ -530,8 +539,8 @@ void dWorldSetBlockIslandBlockRows(dWorldID w, int rows) {
 }
 int dWorldGetBlockIslandBlockRows(dWorldID w) {
   return guarded(__func__, 0, [&] {
-    const std::optional<int> rows = LockedWorld(w).settings().islandBlockRows;
-    return rows ? *rows : currentSettings(w).islandBlockRows;
+    return heldOrSolvers(w, &ode::BridgeSettings::islandBlockRows,
+                         &SolverSettings::islandBlockRows);
   });
 }
 void dWorldSetBlockContactIslandRows(dWorldID w, int rows) {
@@ -540,8 +549,8 @@ void dWorldSetBlockContactIslandRows(dWorldID w, int rows) {
 }
 int dWorldGetBlockContactIslandRows(dWorldID w) {
   return guarded(__func__, 0, [&] {
-    const std::optional<int> rows = LockedWorld(w).settings().contactIslandRows;
-    return rows ? *rows : currentSettings(w).contactIslandRows;
+    return heldOrSolvers(w, &ode::BridgeSettings::contactIslandRows,
+                         &SolverSettings::contactIslandRows);
   });
 }
 void dWorldSetBlockChainBlocks(dWorldID w, int on) {
@@ -549,8 +558,8 @@ void dWorldSetBlockChainBlocks(dWorldID w, int on) {
 }
 int dWorldGetBlockChainBlocks(dWorldID w) {
   return guarded(__func__, 0, [&] {
-    const std::optional<bool> on = LockedWorld(w).settings().chainBlocks;
-    return (on ? *on : currentSettings(w).chainBlocks) ? 1 : 0;
+    return heldOrSolvers(w, &ode::BridgeSettings::chainBlocks, &SolverSettings::chainBlocks) ? 1
+                                                                                             : 0;
   });
 }
 // A world's angle setting (rad, >= 0; 0: off) held apart from its solver:
@@ -565,10 +574,7 @@ void setWorldAngle(const char* call, dWorldID w, dReal radians, AngleSetting set
 }
 dReal worldAngle(const char* call, dWorldID w, AngleSetting setting,
                  double SolverSettings::*solverOwn) {
-  return guarded(call, dReal(0), [&] {
-    const std::optional<double> angle = LockedWorld(w).settings().*setting;
-    return dReal(angle ? *angle : currentSettings(w).*solverOwn);
-  });
+  return guarded(call, dReal(0), [&] { return dReal(heldOrSolvers(w, setting, solverOwn)); });
 }
 void dWorldSetBlockMaxTurn(dWorldID w, dReal radians) {
   setWorldAngle(__func__, w, radians, &ode::BridgeSettings::maxTurnPerSubstep);
@@ -602,15 +608,14 @@ void dWorldSetBlockThreads(dWorldID w, int threads) {
 
 int dWorldGetBlockThreads(dWorldID w) {
   return guarded(__func__, 1, [&] {
-    const std::optional<int> threads = LockedWorld(w).settings().threads;
-    return threads ? *threads : currentSettings(w).threads;
+    return heldOrSolvers(w, &ode::BridgeSettings::threads, &SolverSettings::threads);
   });
 }
 
 int dWorldGetBlockRelaxDrift(dWorldID w) {
   return guarded(__func__, 0, [&] {
-    const std::optional<bool> on = LockedWorld(w).settings().relaxCancelsDrift;
-    return on ? int(*on) : int(currentSettings(w).relaxCancelsDrift);
+    return int(heldOrSolvers(w, &ode::BridgeSettings::relaxCancelsDrift,
+                             &SolverSettings::relaxCancelsDrift));
   });
 }
 void dWorldSetBlockRunawayLimits(dWorldID w, dReal energyGain, dReal maxSpeed) {
