@@ -6,6 +6,7 @@
 
 #include "adapters/ode/body_state.h"
 #include "core/collision/convex_hull.h"
+#include "core/collision/gjk_epa.h"
 
 namespace blockstep::compare {
 
@@ -98,6 +99,7 @@ dGeomID Scene::addConvex(const std::vector<double>& points, dBodyID body, double
                             data->points.data(), static_cast<unsigned>(hull.vertices().size()),
                             data->polygons.data());
   data->geom = g;
+  data->hull = std::make_shared<const ConvexHull>(hull);
   convexData_.push_back(std::move(data));
   addGeom(g, body);
   return g;
@@ -192,20 +194,104 @@ void Scene::nearCallback(void* data, dGeomID a, dGeomID b) {
   if (b1 && b2 && dAreConnectedExcluding(b1, b2, dJointTypeContact)) return;
   dContact contact[kMaxContactsPerPair];
   const int n = dCollide(a, b, kMaxContactsPerPair, &contact[0].geom, sizeof(dContact));
+  double depth = 0.0;
   for (int i = 0; i < n; ++i) {
     contact[i].surface = self->surface_;
     dJointID j = dJointCreateContact(self->world_, self->contacts_, &contact[i]);
     dJointAttach(j, b1, b2);
-    self->deepest_ = std::max(self->deepest_, static_cast<double>(contact[i].geom.depth));
+    depth = std::max(depth, static_cast<double>(contact[i].geom.depth));
   }
   self->contactCount_ += n;
+  if (n == 0) return;
+  self->deepestOde_ = std::max(self->deepestOde_, depth);
+  auto round = [](dGeomID g) {
+    const int c = dGeomGetClass(g);
+    return c == dCylinderClass || c == dConvexClass;
+  };
+  const bool plane = dGeomGetClass(a) == dPlaneClass || dGeomGetClass(b) == dPlaneClass;
+  if (!plane && (round(a) || round(b))) {
+    self->roundPairs_.push_back({a, b, depth});
+  } else {
+    self->deepest_ = std::max(self->deepest_, depth);
+  }
 }
 
 double Scene::collide() {
   contactCount_ = 0;
-  deepest_ = 0.0;
+  deepest_ = deepestOde_ = 0.0;
+  roundPairs_.clear();
   dSpaceCollide(space_, this, &nearCallback);
-  return deepest_;
+  return deepestOde_;
+}
+
+double Scene::deepestContact() {
+  // MPR's depth is never less than the least one (it is the shapes'
+  // overlap along its direction), so only pairs ODE finds deeper than the
+  // deepest so far can raise it: the deepest first.
+  std::sort(roundPairs_.begin(), roundPairs_.end(),
+            [](const RoundPair& x, const RoundPair& y) { return x.odeDepth > y.odeDepth; });
+  double deepest = deepest_;
+  for (const RoundPair& pair : roundPairs_) {
+    if (pair.odeDepth <= deepest) break;
+    deepest = std::max(deepest, leastDepth(pair));
+  }
+  return deepest;
+}
+
+bool Scene::coreShape(dGeomID g, Shape& out) const {
+  switch (dGeomGetClass(g)) {
+    case dSphereClass:
+      out = Shape::sphere(0, dGeomSphereGetRadius(g));
+      return true;
+    case dBoxClass: {
+      dVector3 side;
+      dGeomBoxGetLengths(g, side);
+      out = Shape::box(0, Vec3(0.5 * side[0], 0.5 * side[1], 0.5 * side[2]));
+      return true;
+    }
+    case dCapsuleClass: {
+      dReal r, length;
+      dGeomCapsuleGetParams(g, &r, &length);
+      out = Shape::capsule(0, r, length);
+      return true;
+    }
+    case dCylinderClass: {
+      dReal r, length;
+      dGeomCylinderGetParams(g, &r, &length);
+      out = Shape::cylinder(0, r, length);
+      return true;
+    }
+    case dConvexClass:
+      for (const auto& data : convexData_) {
+        if (data->geom == g) {
+          out = Shape::convex(0, data->hull);
+          return true;
+        }
+      }
+      return false;
+    default:
+      return false;
+  }
+}
+
+double Scene::leastDepth(const RoundPair& pair) const {
+  Shape sa, sb;
+  if (!coreShape(pair.a, sa) || !coreShape(pair.b, sb)) return pair.odeDepth;
+  auto pose = [](dGeomID g) {
+    const dReal* p = dGeomGetPosition(g);
+    const dReal* R = dGeomGetRotation(g);  // 3 x 4, row by row
+    Mat3 m;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        m(i, j) = R[4 * i + j];
+    return ShapePose{Vec3(p[0], p[1], p[2]), m};
+  };
+  const PosedConvex A(sa, pose(pair.a)), B(sb, pose(pair.b));
+  const double radii = A.radius + B.radius;  // spheres' and capsules' cores are points, lines
+  const CoreDistance apart = coreDistance(A, B);
+  if (!apart.overlapping) return std::max(0.0, radii - apart.distance);
+  const CorePenetration deep = corePenetration(A, B);
+  return deep.found ? deep.depth + radii : pair.odeDepth;
 }
 
 JointError Scene::jointError() const {
