@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <random>
 #include <vector>
 
 #include "core/collision/gjk_epa.h"
@@ -300,6 +301,51 @@ TEST(ConvexCollision, CylinderOnABoxThroughEpaStandsOnFourPoints) {
   ContactManifold m;
   collideConvex(box, at(Vec3::Zero()), cylinder, at(Vec3(0.1, 0, 0.5 + 0.4 - 0.01)), kMargin, m);
   expectContact(m, 4, -0.01, Vec3::UnitZ());
+}
+
+TEST(ConvexCollision, ShapesBarelyOverlappingGetTheNormalFromAToB) {
+  // A cylinder resting against a box's side in the 1,000-shape pile (the
+  // poses as ODE held them), moved by up to a micrometre: the cores
+  // overlap by nanometres or not at all. EPA's normal came out reversed
+  // for 125 of these 2000 (from the cylinder back into the box), and the
+  // points clipped along it were 275 mm deep: the push-out flung the
+  // resting cylinder at 5 m/s.
+  auto rotation = [](const double(&r)[9]) {
+    Mat3 m;
+    m << r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8];
+    return m;
+  };
+  const Shape box =
+      Shape::box(0, 0.5 * Vec3(0.19780017402319805, 0.26590297527817075, 0.22731381966012632));
+  const Shape cylinder = Shape::cylinder(1, 0.038291174536225589, 0.19690094323370011);
+  const ShapePose boxPose{
+      Vec3(1.6649365376725065, -1.5799533533906982, 0.14019032405625151),
+      rotation({0.50157292646774176, 0.8437047842297104, 0.19127685825128843, -0.8651153594422486,
+                0.48919013749499568, 0.11076291904214444, -0.0001195478764532687,
+                -0.22103222942712533, 0.97526649653455222})};
+  const ShapePose cylinderPose{
+      Vec3(1.7939911174813115, -1.6638213235185717, 0.10234325064621244),
+      rotation({0.078843305175189227, -0.99119922858150988, 0.10633824565259509,
+                0.99450669800088831, 0.08557333495055941, 0.060279614935808232,
+                -0.068848826136847951, 0.10100145347894283, 0.99250115643999071})};
+  const Vec3 faceNormal = boxPose.rotation.col(0);  // the box's side the cylinder leans on
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> unit(-0.5, 0.5);
+  int reversed = 0;
+  double deepest = 0.0;
+  for (int t = 0; t < 2000; ++t) {
+    const double scale = t % 2 ? 1e-8 : 1e-6;
+    ShapePose moved = cylinderPose;
+    moved.position += scale * Vec3(unit(rng), unit(rng), unit(rng));
+    ContactManifold m;
+    const int n = collideConvex(box, boxPose, cylinder, moved, 0.005, m);
+    if (n == 0) continue;
+    reversed += m.normal.dot(faceNormal) < 0.99;
+    for (int i = 0; i < n; ++i)
+      deepest = std::min(deepest, m.points[i].separation);
+  }
+  EXPECT_EQ(reversed, 0);
+  EXPECT_GT(deepest, -1e-5);
 }
 
 TEST(ConvexCollision, DegenerateContactsGiveFiniteAnswers) {
