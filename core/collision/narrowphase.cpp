@@ -7,6 +7,15 @@
 #include "core/collision/manifold.h"
 
 namespace blockstep {
+namespace {
+
+// How much shallower than GJK/EPA's separation a clipped manifold's
+// deepest point may be (plus a tenth of the depth), m: clipping measures
+// each point to the reference face's plane, so a face tilted off the
+// normal or a round side's polygon reads a little shallower.
+constexpr double kClippedDepthSlack = 1e-3;
+
+}  // namespace
 
 int collideSpherePlane(const Shape& plane, const Shape& sphere, const ShapePose& ps, double margin,
                        ContactManifold& m) {
@@ -175,12 +184,28 @@ int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const Sha
                   double margin, ContactManifold& m) {
   m.pointCount = 0;
   const PosedConvex A(a, pa), B(b, pb);
+  // The clipped features hold the shapes' closest (or deepest) point only
+  // when it lies within the reference face's sides. When it lies beyond
+  // them (a hull's vertex reaching past a box face's edge, turning in as
+  // the hull spins), the points clipped from the face were up to 35 mm
+  // shallower than GJK/EPA's separation: a box in the 1,000-shape pile
+  // sank 38 mm into such a hull while its contact said 3 mm apart. Such a
+  // manifold is dropped for the single point, at the true separation.
+  auto clipped = [&](const Vec3& n, double separation) {
+    if (clipFeatures(A, B, n, margin, m) == 0) return false;
+    double least = kInf;
+    for (int i = 0; i < m.pointCount; ++i)
+      least = std::min(least, m.points[i].separation);
+    if (least <= separation + kClippedDepthSlack + 0.1 * std::abs(separation)) return true;
+    m.pointCount = 0;
+    return false;
+  };
   const CoreDistance apart = coreDistance(A, B);
   if (!apart.overlapping) {
     const double separation = apart.distance - A.radius - B.radius;
     if (separation > margin) return 0;
     const Vec3 n = (apart.pointB - apart.pointA) / apart.distance;
-    if (clipFeatures(A, B, n, margin, m) > 0) return m.pointCount;
+    if (clipped(n, separation)) return m.pointCount;
     addManifoldPoint(m, apart.pointA + A.radius * n, separation, 0);
     return 1;
   }
@@ -197,7 +222,7 @@ int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const Sha
   }
   const Vec3& n = deep.normal;
   const double separation = -deep.depth - A.radius - B.radius;
-  if (clipFeatures(A, B, n, margin, m) > 0) return m.pointCount;
+  if (clipped(n, separation)) return m.pointCount;
   // One point. libccd's position is a blend of the support points of
   // EPA's last face, off the contact on an edge crossing (0.11 m on the
   // crossed-edges test); the witness comes from GJK instead, with B moved

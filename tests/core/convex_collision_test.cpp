@@ -8,6 +8,7 @@
 #include <random>
 #include <vector>
 
+#include "core/collision/convex_hull.h"
 #include "core/collision/gjk_epa.h"
 #include "core/collision/manifold.h"
 #include "core/collision/narrowphase.h"
@@ -346,6 +347,45 @@ TEST(ConvexCollision, ShapesBarelyOverlappingGetTheNormalFromAToB) {
   }
   EXPECT_EQ(reversed, 0);
   EXPECT_GT(deepest, -1e-5);
+}
+
+TEST(ConvexCollision, AHullVertexPastABoxFacesEdgeKeepsItsDepth) {
+  // A box landing on a spinning hull in the 1,000-shape pile (the poses
+  // the core held): they overlap 31.8 mm (EPA; the separating-axis test
+  // over every face normal and edge pair gives the same), but the hull's
+  // deepest vertex lies beyond the box face's edge, and the points clipped
+  // from the face said 3.4 to 11.9 mm apart. The box sank 38 mm into it.
+  const Shape box =
+      Shape::box(0, Vec3(0.17431462201042272, 0.10769658591543266, 0.082580133969190228));
+  const std::vector<Vec3> corners = {
+      Vec3(0.023565075194278421, 0.048245791067070651, -0.06646731386679057),
+      Vec3(0.12125086443119494, -0.0036435974105098849, -0.049908644688727813),
+      Vec3(0.044405110029719544, -0.082600844694432421, -0.058596401830346673),
+      Vec3(0.072707906982014014, -0.10958520559958525, 0.031378979341108754),
+      Vec3(-0.11213028632803899, -0.0011607340600667121, 0.036607217829049646),
+      Vec3(-0.082714798399997166, 0.020599160708417191, -0.066735085845434083),
+      Vec3(-0.064644985745514361, 0.10211622344924004, 0.10069464463953975),
+      Vec3(0.036713613765446004, -0.061203887850165249, 0.054410017910451261),
+      Vec3(0.10151658168256736, -0.078214152088119451, -0.042278310733730298),
+      Vec3(-0.041389970812370995, 0.10438685188792599, 0.067020616665986368)};
+  const Shape hull =
+      Shape::convex(1, std::make_shared<const ConvexHull>(ConvexHull::fromPoints(corners)));
+  const ShapePose boxPose =
+      ShapePose{Vec3(-0.86785056372784886, -2.1803479711870448, 0.3044623393544606),
+                (Mat3() << -0.5583705547007054, -0.8103810019045401, -0.17749635318907286,
+                 0.043378076667018872, -0.24218384952536809, 0.96926019493928672,
+                 -0.8284567979731331, 0.53350690228081166, 0.17038109962914283)
+                    .finished()};
+  const ShapePose hullPose =
+      ShapePose{Vec3(-0.92364048808838217, -2.1708661456292866, 0.072676634871256154),
+                (Mat3() << 0.63436279146072772, 0.76611230081578463, 0.10322689256631742,
+                 -0.77231500504765482, 0.62233171596151915, 0.12740788157187058,
+                 0.033367376108919065, -0.16054649746143881, 0.9864641100235072)
+                    .finished()};
+  ContactManifold m;
+  ASSERT_GT(collideConvex(box, boxPose, hull, hullPose, 0.015, m), 0);
+  EXPECT_NEAR(deepest(m), -0.0317693, 1e-6);
+  EXPECT_LT((m.normal - Vec3(-0.584553, 0.272408, -0.764259)).norm(), 1e-5);
 }
 
 TEST(ConvexCollision, DegenerateContactsGiveFiniteAnswers) {
