@@ -155,9 +155,18 @@ CoreDistance coreDistance(const PosedConvex& a, const PosedConvex& b) {
     return out;
   };
   constexpr int kMaxIterations = 64;
+  // Whether some support point w along -v had v.w > 0: v then separates
+  // the cores (no point of the difference lies beyond it), so no later
+  // simplex can hold the origin. On a round core the support points bunch
+  // up as GJK converges; three of them 1e-7 m apart made a flat
+  // tetrahedron whose faces all looked away from the origin, and a
+  // capsule 50 mm clear of a cylinder's core was taken for overlapping,
+  // its whole radius deep (the 1,000-shape pile flung such pairs apart).
+  bool separated = false;
   for (out.iterations = 0; out.iterations < kMaxIterations; ++out.iterations) {
     if (vv <= touching * touching) return overlap();
     const SimplexVertex w = vertex(-v);
+    separated = separated || v.dot(w.w) > 0.0;
     // Converged: the support along -v gains nothing on |v| (the distance
     // lies between v.w / |v| and |v|).
     if (vv - v.dot(w.w) <= 1e-12 * vv) break;
@@ -169,7 +178,11 @@ CoreDistance coreDistance(const PosedConvex& a, const PosedConvex& b) {
     s.weight[s.count++] = 0.0;
     if (s.count == 2) closestOnSegment(s);
     if (s.count == 3) closestOnTriangle(s, 0, 1, 2);
-    if (s.count == 4 && !closestOnTetrahedron(s)) return overlap();
+    if (s.count == 4 && !closestOnTetrahedron(s)) {
+      if (!separated) return overlap();
+      s.count = 3;  // rounding: keep the last triangle's answer
+      break;
+    }
     const Vec3 next = s.closest();
     const double nn = next.squaredNorm();
     if (nn >= vv) break;  // rounding: no more progress

@@ -388,6 +388,80 @@ TEST(ConvexCollision, AHullVertexPastABoxFacesEdgeKeepsItsDepth) {
   EXPECT_LT((m.normal - Vec3(-0.584553, 0.272408, -0.764259)).norm(), 1e-5);
 }
 
+TEST(ConvexCollision, CapsulesNearCylindersAreNotTakenForOverlapping) {
+  // Capsules beside cylinders in the 1,000-shape pile (the poses the core
+  // held). GJK's support points on the cylinder's round side bunched up
+  // 1e-7 m apart; the flat tetrahedron they made was taken for one
+  // holding the origin, so the cores (50-93 mm apart) counted as
+  // overlapping and the contact came out a whole radius deep: 17 such
+  // pairs in 106 frames, each flung apart. The depth is checked against
+  // the least overlap of the two shapes' projections over 20,000
+  // directions (never less than the true depth, within 0.2 mm of it).
+  struct Pair {
+    Shape cylinder;
+    ShapePose cylinderPose;
+    Shape capsule;
+    ShapePose capsulePose;
+  };
+  const Pair pairs[] = {
+      {Shape::cylinder(0, 0.094412140940109149, 2 * 0.10126523848951802),
+       ShapePose{Vec3(2.6430245438259483, 0.23707306489483873, 0.1588134117796231),
+                 (Mat3() << -0.88085286970865306, 0.29084376366813913, 0.37350786746919051,
+                  -0.24428144584019293, 0.39657756673785105, -0.88490271147652733,
+                  -0.40549327632434995, -0.87071013471512826, -0.27827875262065449)
+                     .finished()},
+       Shape::capsule(1, 0.050495739861964442, 2 * 0.086220684376369788),
+       ShapePose{Vec3(2.6777218947160013, 0.4362127135171211, 0.076526561125663625),
+                 (Mat3() << 0.67647892573588564, 0.54319377903986144, 0.49730954288814583,
+                  -0.58062306993580493, -0.02203300626738347, 0.81387431295817614,
+                  0.45304868799450643, -0.83931821441406596, 0.30048597514566389)
+                     .finished()}},
+      {Shape::cylinder(0, 0.047177406716817541, 2 * 0.088078245380548051),
+       ShapePose{Vec3(-1.8342750323304045, 0.75053828447093029, 0.14751752574016241),
+                 (Mat3() << -0.33276544869554381, -0.61447764627932999, 0.71532117148695329,
+                  -0.37722501176938789, 0.78195494140359068, 0.49623357414638136,
+                  -0.8642733633810763, -0.10470764937444429, -0.49200392428560935)
+                     .finished()},
+       Shape::capsule(1, 0.067233879344840458, 2 * 0.053476699527878063),
+       ShapePose{Vec3(-1.9691044525596237, 0.74561068310587908, 0.06963448902210459),
+                 (Mat3() << -0.51269469608284846, -0.83649854701437776, 0.1934278404246676,
+                  -0.061781606820837998, -0.18876204212310888, -0.98007750944103866,
+                  0.85634524677092183, -0.51443082362582893, 0.045097073480440564)
+                     .finished()}},
+      {Shape::cylinder(0, 0.084910622234571353, 2 * 0.074859947754192635),
+       ShapePose{Vec3(0.48585338653203142, -1.4806904265009919, 0.10578132753704299),
+                 (Mat3() << 0.67488469174251309, -0.3923545524096157, 0.62497084576407502,
+                  -0.25534047236312596, 0.67044603114425927, 0.6966371813909209,
+                  -0.69233799261992601, -0.62973012038996612, 0.3522897663126906)
+                     .finished()},
+       Shape::capsule(1, 0.092614590958607385, 2 * 0.074015131826601355),
+       ShapePose{Vec3(0.71013748228706397, -1.6029356447861338, 0.09250399358700602),
+                 (Mat3() << -0.43295698088080314, 0.47416030199419157, 0.7666291546239008,
+                  -0.51532076481906175, 0.56759733234406606, -0.64208860577197369,
+                  -0.739589590281581, -0.6730566665063773, -0.0014005778972003835)
+                     .finished()}}};
+  for (const Pair& p : pairs) {
+    const PosedConvex A(p.cylinder, p.cylinderPose), B(p.capsule, p.capsulePose);
+    double leastOverlap = kInf;
+    constexpr int kDirections = 20000;
+    for (int i = 0; i < kDirections; ++i) {  // a Fibonacci sphere
+      const double z = 1.0 - 2.0 * (i + 0.5) / kDirections, r = std::sqrt(1.0 - z * z);
+      const double phi = i * 2.399963229728653;
+      const Vec3 d(r * std::cos(phi), r * std::sin(phi), z);
+      leastOverlap = std::min(
+          leastOverlap, A.coreSupport(d).dot(d) - B.coreSupport(-d).dot(d) + A.radius + B.radius);
+    }
+    ContactManifold m;
+    const int n = collideConvex(p.cylinder, p.cylinderPose, p.capsule, p.capsulePose, kMargin, m);
+    if (leastOverlap < -kMargin) {
+      EXPECT_EQ(n, 0) << "apart by " << -leastOverlap;
+      continue;
+    }
+    ASSERT_GT(n, 0);
+    EXPECT_NEAR(deepest(m), -leastOverlap, 2e-4);
+  }
+}
+
 TEST(ConvexCollision, DegenerateContactsGiveFiniteAnswers) {
   ContactManifold m;
   auto finite = [&m] {
