@@ -462,6 +462,72 @@ TEST(ConvexCollision, CapsulesNearCylindersAreNotTakenForOverlapping) {
   }
 }
 
+TEST(ConvexCollision, RoundShapesTouchingAtTheirSidesKeepTheirDepth) {
+  // Two cylinders, and a hull against a cylinder, 0.4-0.5 mm into one
+  // another in the 1,000-shape pile (the poses the core held). Where a
+  // GJK step made no progress it kept the new simplex's points with the
+  // old |v|: the hull-cylinder normal came out 4.9 long and its points
+  // 53 mm deep; and EPA ended the cylinders' on a face 84 mm deep. No
+  // point may be deeper than the shapes' projections overlap along some
+  // direction (the least over 20,000 directions: 0.9 mm for the
+  // cylinders, whose least overlap, along the line of their centres, is
+  // 0.4 um), and the normal is a unit vector.
+  struct Pair {
+    Shape a;
+    ShapePose poseA;
+    Shape b;
+    ShapePose poseB;
+  };
+  const Pair pairs[] = {
+      {Shape::cylinder(0, 0.053098083220534678, 2 * 0.028214380442391364),
+       ShapePose{Vec3(0.96062807919285387, -0.71376768417783065, 0.055059667196851167),
+                 (Mat3() << 0.46388891641798169, -0.26023298707963527, 0.84680922624884114,
+                  -0.65987568107342243, 0.53627087629525882, 0.52628664505704681,
+                  -0.59107627151869124, -0.80292735641098034, 0.077048696124183635)
+                     .finished()},
+       Shape::cylinder(1, 0.095949435680564507, 2 * 0.14022283224360677),
+       ShapePose{Vec3(1.098268091328251, -0.70523692708055241, 0.095537236174095347),
+                 (Mat3() << -0.52021115569444865, 0.67131552398301708, -0.52793543236881968,
+                  -0.32461781849377935, 0.41634225721528406, 0.84928346079104933,
+                  0.78993900106741477, 0.61318397901142951, 0.0013350941259773208)
+                     .finished()}},
+      {Shape::convex(
+           0, std::make_shared<const ConvexHull>(ConvexHull::fromPoints(
+                  {Vec3(-0.17327545811154041, 0.048871715642833852, 0.021500413918940069),
+                   Vec3(0.020787618517745229, -0.10131387463763156, -0.1303354370535047),
+                   Vec3(0.087392934537900549, -0.050917590917697486, 0.13078459385291946),
+                   Vec3(0.062375206632455132, 0.078235380693292139, 0.0061452953835917021),
+                   Vec3(-0.024430294851438772, 0.071118681851882276, 0.047915865221472537),
+                   Vec3(0.053530642205475945, 0.016219876643375413, -0.099214420852164309),
+                   Vec3(0.030733655519688138, -0.018998108059499141, 0.10655921652513295)}))),
+       ShapePose{Vec3(3.0860518376290949, 1.2489813506491192, 0.086696793190992924),
+                 (Mat3() << -0.67203334351512511, -0.69349426658802016, -0.25968613250119094,
+                  -0.63585627001674849, 0.72014254550688062, -0.27763558495131402,
+                  0.37954971885679217, -0.021457314846326708, -0.92492248029514101)
+                     .finished()},
+       Shape::cylinder(1, 0.078833459832747144, 2 * 0.088793148940880834),
+       ShapePose{Vec3(3.117992391675446, 1.4652084792674707, 0.078823384374719391),
+                 (Mat3() << -0.43066729245042756, -0.70967570770672239, 0.5575715856321769,
+                  -0.28926487198385925, -0.47666750145280812, -0.83012886162022947,
+                  0.85489854196248272, -0.51879522255866928, 8.4950995171695354e-07)
+                     .finished()}}};
+  for (const Pair& p : pairs) {
+    const PosedConvex A(p.a, p.poseA), B(p.b, p.poseB);
+    double leastOverlap = kInf;
+    constexpr int kDirections = 20000;
+    for (int i = 0; i < kDirections; ++i) {  // a Fibonacci sphere
+      const double z = 1.0 - 2.0 * (i + 0.5) / kDirections, r = std::sqrt(1.0 - z * z);
+      const double phi = i * 2.399963229728653;
+      const Vec3 d(r * std::cos(phi), r * std::sin(phi), z);
+      leastOverlap = std::min(leastOverlap, A.coreSupport(d).dot(d) - B.coreSupport(-d).dot(d));
+    }
+    ContactManifold m;
+    ASSERT_GT(collideConvex(p.a, p.poseA, p.b, p.poseB, 0.005, m), 0);
+    EXPECT_NEAR(m.normal.norm(), 1.0, 1e-9);
+    EXPECT_GE(deepest(m), -leastOverlap - 1e-6);
+  }
+}
+
 TEST(ConvexCollision, DegenerateContactsGiveFiniteAnswers) {
   ContactManifold m;
   auto finite = [&m] {
