@@ -45,7 +45,9 @@ Vec3 PosedConvex::coreSupport(const Vec3& direction) const {
       local = Vec3(0, 0, d.z() >= 0.0 ? shape->halfLength : -shape->halfLength);
       break;
     case Shape::Kind::Cylinder: {
-      const double across = std::hypot(d.x(), d.y());
+      // Not std::hypot: its care for overflow cost 5% of a 1,000-shape
+      // pile's step, and a direction's parts are nowhere near the limits.
+      const double across = std::sqrt(d.x() * d.x() + d.y() * d.y());
       local = Vec3(0, 0, d.z() >= 0.0 ? shape->halfLength : -shape->halfLength);
       if (across > 0.0) {
         local.x() = shape->radius * d.x() / across;
