@@ -33,6 +33,25 @@ double deepest(const ContactManifold& m) {
   return s;
 }
 
+// The least overlap of two shapes' projections over 20,000 directions (a
+// Fibonacci sphere), m: never less than their true depth (the overlap
+// along any direction bounds it), negative where one separates them. An
+// answer GJK and EPA are checked against without either of them.
+double leastProjectedOverlap(const Shape& a, const ShapePose& pa, const Shape& b,
+                             const ShapePose& pb) {
+  const PosedConvex A(a, pa), B(b, pb);
+  double least = kInf;
+  constexpr int kDirections = 20000;
+  for (int i = 0; i < kDirections; ++i) {
+    const double z = 1.0 - 2.0 * (i + 0.5) / kDirections, r = std::sqrt(1.0 - z * z);
+    const double phi = i * 2.399963229728653;  // the golden angle
+    const Vec3 d(r * std::cos(phi), r * std::sin(phi), z);
+    least =
+        std::min(least, A.coreSupport(d).dot(d) - B.coreSupport(-d).dot(d) + A.radius + B.radius);
+  }
+  return least;
+}
+
 std::shared_ptr<const ConvexHull> boxHull(const Vec3& half) {
   std::vector<Vec3> corners;
   for (int c = 0; c < 8; ++c)
@@ -441,16 +460,8 @@ TEST(ConvexCollision, CapsulesNearCylindersAreNotTakenForOverlapping) {
                   -0.739589590281581, -0.6730566665063773, -0.0014005778972003835)
                      .finished()}}};
   for (const Pair& p : pairs) {
-    const PosedConvex A(p.cylinder, p.cylinderPose), B(p.capsule, p.capsulePose);
-    double leastOverlap = kInf;
-    constexpr int kDirections = 20000;
-    for (int i = 0; i < kDirections; ++i) {  // a Fibonacci sphere
-      const double z = 1.0 - 2.0 * (i + 0.5) / kDirections, r = std::sqrt(1.0 - z * z);
-      const double phi = i * 2.399963229728653;
-      const Vec3 d(r * std::cos(phi), r * std::sin(phi), z);
-      leastOverlap = std::min(
-          leastOverlap, A.coreSupport(d).dot(d) - B.coreSupport(-d).dot(d) + A.radius + B.radius);
-    }
+    const double leastOverlap =
+        leastProjectedOverlap(p.cylinder, p.cylinderPose, p.capsule, p.capsulePose);
     ContactManifold m;
     const int n = collideConvex(p.cylinder, p.cylinderPose, p.capsule, p.capsulePose, kMargin, m);
     if (leastOverlap < -kMargin) {
@@ -512,15 +523,7 @@ TEST(ConvexCollision, RoundShapesTouchingAtTheirSidesKeepTheirDepth) {
                   0.85489854196248272, -0.51879522255866928, 8.4950995171695354e-07)
                      .finished()}}};
   for (const Pair& p : pairs) {
-    const PosedConvex A(p.a, p.poseA), B(p.b, p.poseB);
-    double leastOverlap = kInf;
-    constexpr int kDirections = 20000;
-    for (int i = 0; i < kDirections; ++i) {  // a Fibonacci sphere
-      const double z = 1.0 - 2.0 * (i + 0.5) / kDirections, r = std::sqrt(1.0 - z * z);
-      const double phi = i * 2.399963229728653;
-      const Vec3 d(r * std::cos(phi), r * std::sin(phi), z);
-      leastOverlap = std::min(leastOverlap, A.coreSupport(d).dot(d) - B.coreSupport(-d).dot(d));
-    }
+    const double leastOverlap = leastProjectedOverlap(p.a, p.poseA, p.b, p.poseB);
     ContactManifold m;
     ASSERT_GT(collideConvex(p.a, p.poseA, p.b, p.poseB, 0.005, m), 0);
     EXPECT_NEAR(m.normal.norm(), 1.0, 1e-9);
