@@ -195,6 +195,10 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_CONTACT_ISLAND_ROWS", v, 0, n)) {
     s.contactIslandRows = n;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_LIGHT_BODY_GROUPS");
+      v && parseInt("BLOCKSTEP_LIGHT_BODY_GROUPS", v, 0, n, 1)) {
+    s.lightBodyGroups = n != 0;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_CHAIN_BLOCKS");
       v && parseInt("BLOCKSTEP_CHAIN_BLOCKS", v, 0, n, 1)) {
     s.chainBlocks = n != 0;
@@ -551,6 +555,16 @@ int dWorldGetBlockContactIslandRows(dWorldID w) {
   return guarded(__func__, 0, [&] {
     return heldOrSolvers(w, &ode::BridgeSettings::contactIslandRows,
                          &SolverSettings::contactIslandRows);
+  });
+}
+void dWorldSetBlockLightBodyGroups(dWorldID w, int on) {
+  guarded(__func__, [&] { LockedWorld(w).settings().lightBodyGroups = on != 0; });
+}
+int dWorldGetBlockLightBodyGroups(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    return heldOrSolvers(w, &ode::BridgeSettings::lightBodyGroups, &SolverSettings::lightBodyGroups)
+               ? 1
+               : 0;
   });
 }
 void dWorldSetBlockChainBlocks(dWorldID w, int on) {

@@ -61,6 +61,9 @@ struct BridgeSettings {
   // Contact islands as one exact block up to this many normal rows
   // (SolverSettings::contactIslandRows; unset: the solver's own).
   std::optional<int> contactIslandRows;
+  // In larger contact islands, each light body's manifolds as one exact
+  // group (SolverSettings::lightBodyGroups; unset: the solver's own).
+  std::optional<bool> lightBodyGroups;
   // The turn per sub-step above which a step runs more sub-steps
   // (SolverSettings::maxTurnPerSubstep; unset: the solver's own).
   std::optional<double> maxTurnPerSubstep;

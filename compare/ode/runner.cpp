@@ -81,6 +81,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.rowByRow) dWorldSetBlockMode(w, *o.rowByRow ? dBlockModeRowByRow : dBlockModeBlock);
   if (o.islandRows) dWorldSetBlockIslandBlockRows(w, *o.islandRows);
   if (o.chains) dWorldSetBlockChainBlocks(w, *o.chains ? 1 : 0);
+  if (o.lightGroups) dWorldSetBlockLightBodyGroups(w, *o.lightGroups ? 1 : 0);
   if (o.contactRows) dWorldSetBlockContactIslandRows(w, *o.contactRows);
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
   if (o.refreshTurn) dWorldSetBlockRefreshTurn(w, *o.refreshTurn);
@@ -300,6 +301,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.islandRows = whole(text, key, value, 0, 1000000);
   } else if (key == "chains") {
     o.chains = flag(text, key, value);
+  } else if (key == "light_groups") {
+    o.lightGroups = flag(text, key, value);
   } else if (key == "contact_rows") {
     o.contactRows = whole(text, key, value, 0, 4096);
   } else if (key == "max_turn") {
@@ -342,6 +345,8 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"chains", "blockstep: larger islands cut into chains of that many rows, 0 or 1"},
           {"contact_rows",
            "blockstep: contact islands as one exact block up to this many points, 0: off"},
+          {"light_groups",
+           "blockstep: in larger contact islands, light bodies' contacts as exact groups, 0 or 1"},
           {"max_turn", "blockstep: more sub-steps past this turn per sub-step, rad, 0: off"},
           {"refresh_turn",
            "blockstep: sub-steps keep their rows until bodies turn this far, rad, 0: always "

@@ -42,6 +42,7 @@ struct Overrides {
   std::optional<bool> warm;           // warm starting
   std::optional<bool> rowByRow;       // mode=row: one row at a time, not one block per joint
   std::optional<int> islandRows;      // island blocks up to this many joint rows (0: off)
+  std::optional<bool> lightGroups;    // light bodies' contacts as exact groups in larger islands
   std::optional<bool> chains;         // larger islands cut into chains of that many rows
   std::optional<int> contactRows;     // contact islands as one block up to this many points
   std::optional<double> maxTurn;      // rad per sub-step before more sub-steps (0: off)

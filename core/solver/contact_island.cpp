@@ -79,28 +79,31 @@ constexpr double kUnmetTarget = 1e-3;
 
 }  // namespace
 
-void ContactIslands::addGroup(int island, const std::vector<ConstraintBlock>& blocks,
-                              const std::vector<std::int32_t>& islandStart, std::int32_t staticBody,
-                              int rows) {
-  Group g;
-  g.firstEntry = static_cast<std::int32_t>(entryRow_.size());
-  g.size = rows;
-  if (!groups_.empty()) {
-    const Group& last = groups_.back();
-    g.matrix = last.matrix + 3 * static_cast<std::size_t>(last.size) * last.size;
-  }
+void ContactIslands::indexBodies(int island, const std::vector<ConstraintBlock>& blocks,
+                                 const std::vector<std::int32_t>& islandStart,
+                                 std::int32_t staticBody) {
   const std::int32_t first = islandStart[island];
-  const std::int32_t count = islandStart[island + 1] - first;
   incidence_.clear();
-  std::int32_t start = 0;
-  for (std::int32_t k = 0; k < count; ++k) {
+  for (std::int32_t k = 0; k < islandStart[island + 1] - first; ++k) {
     const ConstraintBlock& blk = blocks[first + k];
     for (const std::int32_t body : {blk.bodyA, blk.bodyB}) {
       if (body != staticBody) incidence_.emplace_back(body, k);
     }
-    if (blk.bodyA == staticBody || blk.bodyB == staticBody) start = k;
   }
   std::sort(incidence_.begin(), incidence_.end());
+}
+
+void ContactIslands::addIsland(int island, const std::vector<ConstraintBlock>& blocks,
+                               const std::vector<std::int32_t>& islandStart,
+                               std::int32_t staticBody) {
+  const std::int32_t first = islandStart[island];
+  const std::int32_t count = islandStart[island + 1] - first;
+  indexBodies(island, blocks, islandStart, staticBody);
+  std::int32_t start = 0;
+  for (std::int32_t k = 0; k < count; ++k) {
+    const ConstraintBlock& blk = blocks[first + k];
+    if (blk.bodyA == staticBody || blk.bodyB == staticBody) start = k;
+  }
   order_.assign(1, start);
   taken_.assign(static_cast<std::size_t>(count), 0);
   taken_[start] = 1;
@@ -118,14 +121,71 @@ void ContactIslands::addGroup(int island, const std::vector<ConstraintBlock>& bl
   for (std::int32_t k = 0; k < count; ++k) {  // an island is connected; kept safe
     if (!taken_[k]) order_.push_back(k);
   }
-  for (const std::int32_t k : order_) {
+  groupsOfIsland_[island].first = static_cast<std::int32_t>(groups_.size());
+  appendGroup(blocks, first, order_);
+  groupsOfIsland_[island].second = static_cast<std::int32_t>(groups_.size());
+}
+
+void ContactIslands::addLightBodies(int island, const std::vector<ConstraintBlock>& blocks,
+                                    const std::vector<std::int32_t>& islandStart,
+                                    std::int32_t staticBody, const std::vector<SolverBody>& bodies,
+                                    int maxRows) {
+  const std::int32_t first = islandStart[island];
+  const std::int32_t count = islandStart[island + 1] - first;
+  indexBodies(island, blocks, islandStart, staticBody);
+  // The bodies at least kLightBodyRatio times lighter than a body they
+  // touch, lightest first.
+  lightBodies_.clear();
+  for (std::size_t p = 0; p < incidence_.size();) {
+    const std::int32_t body = incidence_[p].first;
+    double heaviestNeighbour = bodies[body].invMass;  // as an inverse mass
+    for (; p < incidence_.size() && incidence_[p].first == body; ++p) {
+      const ConstraintBlock& blk = blocks[first + incidence_[p].second];
+      const std::int32_t other = blk.bodyA == body ? blk.bodyB : blk.bodyA;
+      if (other != staticBody)
+        heaviestNeighbour = std::min(heaviestNeighbour, bodies[other].invMass);
+    }
+    if (bodies[body].invMass >= kLightBodyRatio * heaviestNeighbour && heaviestNeighbour > 0.0)
+      lightBodies_.emplace_back(-bodies[body].invMass, body);
+  }
+  std::sort(lightBodies_.begin(), lightBodies_.end());
+  taken_.assign(static_cast<std::size_t>(count), 0);
+  groupsOfIsland_[island].first = static_cast<std::int32_t>(groups_.size());
+  for (const auto& [negativeInvMass, body] : lightBodies_) {
+    members_.clear();
+    int rows = 0;
+    auto it = std::lower_bound(incidence_.begin(), incidence_.end(), std::make_pair(body, 0));
+    for (; it != incidence_.end() && it->first == body; ++it) {
+      const int more = blocks[first + it->second].equality;
+      if (taken_[it->second] || rows + more > maxRows) continue;
+      members_.push_back(it->second);
+      rows += more;
+    }
+    if (members_.size() < 2) continue;  // one manifold alone is already one block
+    for (const std::int32_t k : members_)
+      taken_[k] = 1;
+    appendGroup(blocks, first, members_);
+  }
+  groupsOfIsland_[island].second = static_cast<std::int32_t>(groups_.size());
+}
+
+void ContactIslands::appendGroup(const std::vector<ConstraintBlock>& blocks, std::int32_t first,
+                                 const std::vector<std::int32_t>& members) {
+  Group g;
+  g.firstEntry = static_cast<std::int32_t>(entryRow_.size());
+  if (!groups_.empty()) {
+    const Group& last = groups_.back();
+    g.matrix = last.matrix + 3 * static_cast<std::size_t>(last.size) * last.size;
+  }
+  for (const std::int32_t k : members) {
     const ConstraintBlock& blk = blocks[first + k];
+    groupOfBlock_[first + k] = static_cast<std::int32_t>(groups_.size());
     for (int i = 0; i < blk.equality; ++i) {
       entryRow_.push_back(blk.firstRow + i);
       entryBlock_.push_back(first + k);
     }
   }
-  groupOfIsland_[island] = static_cast<std::int32_t>(groups_.size());
+  g.size = static_cast<std::int32_t>(entryRow_.size()) - g.firstEntry;
   groups_.push_back(g);
 }
 
@@ -240,11 +300,11 @@ void ContactIslands::factorActive(Group& g) {
   g.factorStale = false;
 }
 
-ContactIslands::Outcome ContactIslands::solve(int island, bool useBias,
+ContactIslands::Outcome ContactIslands::solve(int group, bool useBias,
                                               const std::vector<ConstraintBlock>& blocks,
                                               std::vector<ConstraintRow>& rows,
                                               std::vector<SolverBody>& bodies) {
-  Group& g = groups_[groupOfIsland_[island]];
+  Group& g = groups_[group];
   const int n = g.size;
   const std::int32_t* rowOf = &entryRow_[g.firstEntry];
   const std::int32_t* blockOf = &entryBlock_[g.firstEntry];

@@ -33,6 +33,15 @@
 // depth ODE's box collider found some points of a resting plank and not
 // others from frame to frame, and the island's points came and went.
 // Friction stays bounded rows around the block (Gauss-Seidel).
+//
+// A larger island (a pile of a thousand shapes) is too large to solve at
+// once, but its worst case for Gauss-Seidel is local: a light body pressed
+// between a heavy one and the ground (a 44 g cylinder under a 2 kg ball)
+// passes on only its share of the load a sweep, and the ball pushed it
+// 26 mm into the ground within a frame. So each body at least
+// kLightBodyRatio times lighter than a body it touches gets its manifolds
+// solved as one group the same way (SolverSettings::lightBodyGroups),
+// Gauss-Seidel with the island's other manifolds and groups.
 #pragma once
 
 #include <algorithm>
@@ -45,14 +54,18 @@
 
 namespace blockstep {
 
+// The chosen islands' groups of contact manifolds: one group for a whole
+// small island, one per light body in a larger one.
 class ContactIslands {
  public:
   // The depth (m) the island's contacts rest at.
   static constexpr double kRestDepth = 1e-5;
 
-  // Chooses this prepare's islands from the built (not yet finished)
-  // blocks of islands [islandBegin, islandEnd): those with no joint and
-  // at most maxRows normal rows in all, every manifold eligible(block):
+  // Chooses this prepare's groups from the built (not yet finished)
+  // blocks of islands [islandBegin, islandEnd) with no joint, every
+  // manifold eligible(block), either the whole island (at most maxRows
+  // normal rows in all) or, when lightBodies is set, its light bodies'
+  // manifolds (addLightBodies). Eligible:
   // not restitutive (solved at once, Newton's cradle would pass its
   // impulse down the row as one shove) and not a physical spring (its
   // softness is real, rows here are rigid). A lone manifold counts too:
@@ -62,9 +75,26 @@ class ContactIslands {
   template <class Eligible>
   void select(const std::vector<ConstraintBlock>& blocks,
               const std::vector<std::int32_t>& islandStart, int islandBegin, int islandEnd,
-              std::int32_t staticBody, int maxRows, Eligible eligible);
+              std::int32_t staticBody, const std::vector<SolverBody>& bodies, int maxRows,
+              bool lightBodies, Eligible eligible);
+  // Whether island i has groups; whether block b is in one.
   bool covers(int island) const {
-    return island < static_cast<int>(groupOfIsland_.size()) && groupOfIsland_[island] >= 0;
+    return island < static_cast<int>(groupsOfIsland_.size()) &&
+           groupsOfIsland_[island].first < groupsOfIsland_[island].second;
+  }
+  bool groups(std::int32_t block) const {
+    return block < static_cast<std::int32_t>(groupOfBlock_.size()) && groupOfBlock_[block] >= 0;
+  }
+  // The groups of island i: [groupsBegin, groupsEnd).
+  int groupsBegin(int island) const { return groupsOfIsland_[island].first; }
+  int groupsEnd(int island) const { return groupsOfIsland_[island].second; }
+  // f(block index) for each manifold of group g.
+  template <class F>
+  void forEachBlock(int g, F f) const {
+    const Group& group = groups_[g];
+    for (std::int32_t e = group.firstEntry; e < group.firstEntry + group.size; ++e) {
+      if (e == group.firstEntry || entryBlock_[e] != entryBlock_[e - 1]) f(entryBlock_[e]);
+    }
   }
   // K of each chosen island, once its rows are finished (Jacobians times
   // M^-1); the active set starts as the points touching.
@@ -76,9 +106,9 @@ class ContactIslands {
     Unmet,     // applied; some targets could not all be met: finish per manifold
     Unsolved,  // nothing applied (the active set did not settle): solve per manifold
   };
-  // One solve of island i's normal rows (its own scratch: islands may be
+  // One solve of group g's normal rows (its own scratch: islands may be
   // solved at once on different threads).
-  Outcome solve(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
+  Outcome solve(int g, bool useBias, const std::vector<ConstraintBlock>& blocks,
                 std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies);
 
  private:
@@ -93,11 +123,26 @@ class ContactIslands {
   // The most rounds of the active set a solve may take.
   static constexpr int kMaxRounds = 8;
 
-  // Island i's manifolds as a group, in breadth-first order over the
+  // A body is light beside a body it touches at least this many times
+  // heavier: the pile's 44 g cylinder under a 2 kg ball.
+  static constexpr double kLightBodyRatio = 4.0;
+
+  // Island i's manifolds as one group, in breadth-first order over the
   // bodies they share from one on the static body (Cuthill-McKee): a
   // stack's K is then banded, and its factor and solves follow the band.
-  void addGroup(int island, const std::vector<ConstraintBlock>& blocks,
-                const std::vector<std::int32_t>& islandStart, std::int32_t staticBody, int rows);
+  void addIsland(int island, const std::vector<ConstraintBlock>& blocks,
+                 const std::vector<std::int32_t>& islandStart, std::int32_t staticBody);
+  // A group of each light body's manifolds (at most maxRows rows, two
+  // manifolds or more, none in an earlier group), lightest body first.
+  void addLightBodies(int island, const std::vector<ConstraintBlock>& blocks,
+                      const std::vector<std::int32_t>& islandStart, std::int32_t staticBody,
+                      const std::vector<SolverBody>& bodies, int maxRows);
+  // incidence_: (body, manifold) of island i, by body (the static body left out).
+  void indexBodies(int island, const std::vector<ConstraintBlock>& blocks,
+                   const std::vector<std::int32_t>& islandStart, std::int32_t staticBody);
+  // A group of the island's manifolds first + k for k in `members`.
+  void appendGroup(const std::vector<ConstraintBlock>& blocks, std::int32_t first,
+                   const std::vector<std::int32_t>& members);
   // The active set's K, its LDL^T and null basis, into the group's storage.
   void factorActive(Group& g);
   double* kOf(const Group& g) { return &storage_[g.matrix]; }
@@ -108,7 +153,8 @@ class ContactIslands {
     return &storage_[g.matrix + 2 * static_cast<std::size_t>(g.size) * g.size];
   }
 
-  std::vector<std::int32_t> groupOfIsland_;
+  std::vector<std::pair<std::int32_t, std::int32_t>> groupsOfIsland_;  // [begin, end) of groups_
+  std::vector<std::int32_t> groupOfBlock_;                             // -1: none
   std::vector<Group> groups_;
   // Per normal row of a group, in the island's block order:
   std::vector<std::int32_t> entryRow_, entryBlock_;
@@ -119,20 +165,27 @@ class ContactIslands {
   // Per active row (in active order): the first column of its row of K
   // (the factor's profile); per null basis vector: the rows it spans.
   std::vector<std::int32_t> profileFirst_, nullBegin_, nullEnd_;
-  // addGroup's ordering scratch: (body, manifold) pairs by body, the
-  // breadth-first queue, manifolds taken.
+  // Grouping scratch: (body, manifold) pairs by body, the breadth-first
+  // queue, manifolds taken, a group's members, (-1/m, body) of the light
+  // bodies.
   std::vector<std::pair<std::int32_t, std::int32_t>> incidence_;
-  std::vector<std::int32_t> order_;
+  std::vector<std::int32_t> order_, members_;
   std::vector<std::uint8_t> taken_;
+  std::vector<std::pair<double, std::int32_t>> lightBodies_;
 };
 
 template <class Eligible>
 void ContactIslands::select(const std::vector<ConstraintBlock>& blocks,
                             const std::vector<std::int32_t>& islandStart, int islandBegin,
-                            int islandEnd, std::int32_t staticBody, int maxRows,
+                            int islandEnd, std::int32_t staticBody,
+                            const std::vector<SolverBody>& bodies, int maxRows, bool lightBodies,
                             Eligible eligible) {
-  if (static_cast<int>(groupOfIsland_.size()) < islandEnd) groupOfIsland_.resize(islandEnd);
-  std::fill(groupOfIsland_.begin() + islandBegin, groupOfIsland_.begin() + islandEnd, -1);
+  if (static_cast<int>(groupsOfIsland_.size()) < islandEnd) groupsOfIsland_.resize(islandEnd);
+  std::fill(groupsOfIsland_.begin() + islandBegin, groupsOfIsland_.begin() + islandEnd,
+            std::pair<std::int32_t, std::int32_t>{0, 0});
+  if (groupOfBlock_.size() < blocks.size()) groupOfBlock_.resize(blocks.size());
+  std::fill(groupOfBlock_.begin() + islandStart[islandBegin],
+            groupOfBlock_.begin() + islandStart[islandEnd], -1);
   groups_.clear();
   entryRow_.clear();
   entryBlock_.clear();
@@ -144,7 +197,11 @@ void ContactIslands::select(const std::vector<ConstraintBlock>& blocks,
       ok = blk.unilateral && eligible(blk);
       rows += blk.equality;
     }
-    if (ok && rows <= maxRows) addGroup(island, blocks, islandStart, staticBody, rows);
+    if (!ok) continue;
+    if (rows <= maxRows)
+      addIsland(island, blocks, islandStart, staticBody);
+    else if (lightBodies)
+      addLightBodies(island, blocks, islandStart, staticBody, bodies, maxRows);
   }
 }
 

@@ -796,15 +796,15 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
 void Solver::selectContactIslands(const StepInput& in, const SolverSettings& s) {
   contactIslandRows_ = s.blockMode == BlockMode::Block ? s.contactIslandRows : 0;
   if (contactIslandRows_ <= 0) return;
-  contactIslands_.select(blocks_, islandStart_, islandBegin_, islandEnd_, dummy_,
-                         contactIslandRows_, [&](const ConstraintBlock& blk) {
+  contactIslands_.select(blocks_, islandStart_, islandBegin_, islandEnd_, dummy_, bodies_,
+                         contactIslandRows_, s.lightBodyGroups, [&](const ConstraintBlock& blk) {
                            const ContactSurface& surface = in.contacts[blk.contact].surface;
                            return surface.restitution <= 0.0 &&
                                   surface.softness.mode != Softness::Mode::Stiffness;
                          });
   for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
     const ConstraintBlock& blk = blocks_[bi];
-    if (!contactIslands_.covers(islandOfBlock_[bi])) continue;
+    if (!contactIslands_.groups(bi)) continue;
     for (int i = 0; i < blk.equality; ++i)
       rows_[blk.firstRow + i].C += ContactIslands::kRestDepth;
   }
@@ -1150,10 +1150,10 @@ double Solver::blockSpringShare(const SolverSettings& s, double h, const Constra
 // equality (or contact normal) rows and its LDL^T.
 void Solver::finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk,
                          bool inIslandBlock, bool inGroup, bool islandSolvesAll) {
-  // An island's contact block solves its normals exactly: they are rigid
+  // A group of contacts solves its normals exactly: they are rigid
   // (contact_island.h).
-  const bool rigidNormals = blk.unilateral && contactIslandRows_ > 0 &&
-                            contactIslands_.covers(islandOfBlock_[&blk - blocks_.data()]);
+  const bool rigidNormals =
+      blk.unilateral && contactIslandRows_ > 0 && contactIslands_.groups(&blk - blocks_.data());
   const SolverBody& a = bodies_[blk.bodyA];
   const SolverBody& b = bodies_[blk.bodyB];
   ConstraintRow* rows = &rows_[blk.firstRow];
@@ -1359,7 +1359,7 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     ConstraintRow* rows = &rows_[blk.firstRow];
     const int ne = blk.equality;
     if (blk.unilateral) {
-      if (contactIsland) {
+      if (contactIsland && contactIslands_.groups(bi)) {
         for (int pass = 0; pass < islandFrictionPasses_; ++pass)
           solveFriction(blk, useBias, a, b);
       } else
@@ -1387,14 +1387,17 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
       islandBlocks().solve(g, useBias, blocks_, rows_, bodies_);
   }
   if (islandBounded) islandBlocks().solveBounded(island, useBias, blocks_, rows_, bodies_);
-  // The island's contact normals at once, after its friction; the
-  // manifolds finish what it leaves (contact_island.h).
-  if (contactIsland && contactIslands_.solve(island, useBias, blocks_, rows_, bodies_) !=
-                           ContactIslands::Outcome::Exact) {
-    for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
+  // The island's groups of contact normals, each at once, after their
+  // friction; a group's manifolds finish what it leaves (contact_island.h).
+  if (!contactIsland) return;
+  for (int g = contactIslands_.groupsBegin(island); g < contactIslands_.groupsEnd(island); ++g) {
+    if (contactIslands_.solve(g, useBias, blocks_, rows_, bodies_) ==
+        ContactIslands::Outcome::Exact)
+      continue;
+    contactIslands_.forEachBlock(g, [&](std::int32_t bi) {
       ConstraintBlock& blk = blocks_[bi];
-      if (blk.unilateral) solveNormals(blk, useBias, mode, bodies_[blk.bodyA], bodies_[blk.bodyB]);
-    }
+      solveNormals(blk, useBias, mode, bodies_[blk.bodyA], bodies_[blk.bodyB]);
+    });
   }
 }
 

@@ -303,14 +303,17 @@ TEST(Contact, HeavyOnLightAndLightUnderHeavyDoNotSink) {
 // sub-step count; the block's weight is spread evenly over its four
 // corners (the least-norm impulses of a face: the rows are dependent).
 struct PlankLoad {
-  double blockDrop = 0.0;     // m, after 5 s
+  double blockDrop = 0.0;     // m, after 5 s (the top block's)
+  double plankDrop = 0.0;     // m, after 5 s
   double deepest = 0.0;       // m, over the run
   double cornerSpread = 0.0;  // largest / smallest of the block's corner impulses
 };
-PlankLoad plankLoad(int substeps, int contactIslandRows) {
+PlankLoad plankLoad(int substeps, int contactIslandRows, bool lightBodyGroups = true,
+                    int blocks = 1) {
   World world;
   SolverSettings s = SolverSettings::subStepped(substeps);
   s.contactIslandRows = contactIslandRows;
+  s.lightBodyGroups = lightBodyGroups;
   world.setSettings(s);
   world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
   for (double x : {-0.8, 0.8}) {
@@ -318,8 +321,10 @@ PlankLoad plankLoad(int substeps, int contactIslandRows) {
     support.localPosition = Vec3(x, 0.0, 0.25);
     world.addShape(support);
   }
-  addBox(world, Vec3(0, 0, 0.525), 1.0, Vec3(1.0, 0.15, 0.025));  // the plank
-  const BodyId block = addBox(world, Vec3(0, 0, 0.75), 1000.0, Vec3(0.2, 0.2, 0.2));
+  const BodyId plank = addBox(world, Vec3(0, 0, 0.525), 1.0, Vec3(1.0, 0.15, 0.025));
+  BodyId block = kWorldBody;
+  for (int k = 0; k < blocks; ++k)
+    block = addBox(world, Vec3(0, 0, 0.75 + 0.4 * k), 1000.0, Vec3(0.2, 0.2, 0.2));
   PlankLoad out;
   for (int i = 0; i < 300; ++i) {
     world.step(1.0 / 60.0);
@@ -328,7 +333,8 @@ PlankLoad plankLoad(int substeps, int contactIslandRows) {
         out.deepest = std::max(out.deepest, -m.points[k].separation);
     }
   }
-  out.blockDrop = 0.75 - world.body(block).position.z();
+  out.blockDrop = 0.75 + 0.4 * (blocks - 1) - world.body(block).position.z();
+  out.plankDrop = 0.525 - world.body(plank).position.z();
   for (const ContactManifold& m : world.contacts()) {
     if (m.bodyA != block && m.bodyB != block) continue;
     double lo = kInf, hi = 0.0;
@@ -354,6 +360,28 @@ TEST(Contact, ThousandKilogramsOnAOneKilogramPlankRestAtAnySubstepCount) {
     EXPECT_LT(block.deepest, 1e-4) << substeps;
     EXPECT_LT(block.cornerSpread, 1.01) << substeps;
     EXPECT_GT(manifolds.blockDrop, 0.01) << substeps;  // what the block is for
+  }
+}
+
+// Islands larger than contactIslandRows keep one block per manifold, but
+// a body four or more times lighter than one it touches has its manifolds
+// solved as one exact group (SolverSettings::lightBodyGroups): two
+// 1000 kg blocks on the 1 kg plank make an island of 16 normal rows, here
+// over a limit of 12, and the plank's 12 rows (both supports and the
+// block) pass the load to the supports at once.
+TEST(Contact, ALightBodyInALargerIslandPassesItsLoadOnAtOnce) {
+  for (int substeps : {1, 10}) {
+    const PlankLoad grouped = plankLoad(substeps, 12, true, 2);
+    const PlankLoad manifolds = plankLoad(substeps, 12, false, 2);
+    std::printf(
+        "%2d sub-steps, 2 t on the plank: with the light-body group the plank drops %.3f mm "
+        "(the top block %.3f mm); manifold by manifold %.1f mm (%.1f mm)\n",
+        substeps, 1e3 * grouped.plankDrop, 1e3 * grouped.blockDrop, 1e3 * manifolds.plankDrop,
+        1e3 * manifolds.blockDrop);
+    EXPECT_LT(std::abs(grouped.plankDrop), 1e-4) << substeps;
+    // The blocks' own manifold stays one soft block (not light: 1:1).
+    EXPECT_LT(std::abs(grouped.blockDrop), 5e-3) << substeps;
+    EXPECT_GT(manifolds.plankDrop, 0.01) << substeps;  // what the group is for
   }
 }
 

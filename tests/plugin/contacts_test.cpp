@@ -173,6 +173,50 @@ TEST(OdeContacts, TonneOnAOneKilogramPlankRestsAsDirectSolver) {
   EXPECT_LT(std::abs(direct), 1e-4);
 }
 
+// Two tonnes stacked on the 1 kg plank make an island larger than the
+// contact island limit set here (12 points): it keeps one block per
+// contact, except the plank, a light body under a heavy one, whose
+// contacts (both supports and the block) are one exact group
+// (dWorldSetBlockLightBodyGroups, on by default sub-stepped). The plank
+// then rests as under dWorldStep; contact by contact it is squeezed out
+// from under the blocks (which way depends on the contacts' order).
+TEST(OdeContacts, LightPlankInALargerIslandRestsAsDirectSolver) {
+  auto drop = [](Stepper stepper, int lightGroups) {
+    ContactScene c;
+    for (double x : {-0.8, 0.8}) {
+      dGeomID support = dCreateBox(c.space, 0.2, 0.4, 0.5);
+      dGeomSetPosition(support, x, 0.0, 0.25);
+    }
+    dBodyID plank = dBodyCreate(c.scene.world);
+    dMass m;
+    dMassSetBoxTotal(&m, 1.0, 2.0, 0.3, 0.05);
+    dBodySetMass(plank, &m);
+    dBodySetPosition(plank, 0.0, 0.0, 0.525);
+    dGeomSetBody(dCreateBox(c.space, 2.0, 0.3, 0.05), plank);
+    c.box(0.0, 0.0, 0.75, 0.4, 1000.0);
+    c.box(0.0, 0.0, 1.15, 0.4, 1000.0);
+    dWorldSetBlockSubsteppedSolver(c.scene.world, 10);
+    EXPECT_EQ(dWorldGetBlockLightBodyGroups(c.scene.world), 1);  // the sub-stepped default
+    dWorldSetBlockContactIslandRows(c.scene.world, 12);
+    dWorldSetBlockLightBodyGroups(c.scene.world, lightGroups);
+    EXPECT_EQ(dWorldGetBlockLightBodyGroups(c.scene.world), lightGroups);
+    for (int f = 0; f < 300; ++f)
+      c.step(stepper);
+    const dReal* p = dBodyGetPosition(plank);
+    return std::sqrt(p[0] * p[0] + p[1] * p[1] + (p[2] - 0.525) * (p[2] - 0.525));
+  };
+  const double direct = drop(Stepper::Direct, 1);
+  const double grouped = drop(Stepper::Block, 1);
+  const double manifolds = drop(Stepper::Block, 0);
+  std::printf(
+      "  plank moved after 5 s: dWorldStep %.3g mm, light-body group %.3g mm, contact by "
+      "contact %.0f mm\n",
+      1e3 * direct, 1e3 * grouped, 1e3 * manifolds);
+  EXPECT_LT(direct, 1e-4);
+  EXPECT_LT(grouped, 1e-4);
+  EXPECT_GT(manifolds, 0.01);  // what the group is for
+}
+
 // Runs the contact scene built by `build` with dWorldStep and with
 // blockstep, and returns probe() of both after `steps` steps. Blockstep
 // runs the paper's solver here (one step, ODE's own ERP and CFM rows,

@@ -75,6 +75,15 @@ ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
  * BLOCKSTEP_CONTACT_ISLAND_ROWS. */
 ODE_API void dWorldSetBlockContactIslandRows(dWorldID w, int rows);
 ODE_API int dWorldGetBlockContactIslandRows(dWorldID w);
+/* In a contact island with more points than that (a pile), solve the
+ * contacts of each body four or more times lighter than one it touches
+ * as one exact block (1), or keep one block per contact (0). A light body
+ * pressed between a heavy one and the ground then passes the load on at
+ * once. Holds under every solver; the default is the solver's own (on
+ * sub-stepped, off for dWorldStep and the paper preset).
+ * BLOCKSTEP_LIGHT_BODY_GROUPS. */
+ODE_API void dWorldSetBlockLightBodyGroups(dWorldID w, int on);
+ODE_API int dWorldGetBlockLightBodyGroups(dWorldID w);
 /* Cut an island with more joint rows than that (a cloth, a lattice) into
  * chains of joints, each of at most that many rows and solved as one
  * exact block inside the sweeps (1), or keep one block per joint (0, the
