@@ -134,18 +134,24 @@ void ContactIslands::addLightBodies(int island, const std::vector<ConstraintBloc
   const std::int32_t count = islandStart[island + 1] - first;
   indexBodies(island, blocks, islandStart, staticBody);
   // The bodies at least kLightBodyRatio times lighter than a body they
-  // touch, lightest first.
+  // touch, lightest first. A body a joint holds is left out: the joint
+  // adds its neighbours' mass, which the group would not see (a 1 kg
+  // bridge plank on its support under a 100 kg crate, solved as light,
+  // was pushed about until the runaway guard caught the bridge).
   lightBodies_.clear();
   for (std::size_t p = 0; p < incidence_.size();) {
     const std::int32_t body = incidence_[p].first;
     double heaviestNeighbour = bodies[body].invMass;  // as an inverse mass
+    bool jointed = false;
     for (; p < incidence_.size() && incidence_[p].first == body; ++p) {
       const ConstraintBlock& blk = blocks[first + incidence_[p].second];
+      jointed = jointed || !blk.unilateral;
       const std::int32_t other = blk.bodyA == body ? blk.bodyB : blk.bodyA;
-      if (other != staticBody)
+      if (usable_[incidence_[p].second] && other != staticBody)
         heaviestNeighbour = std::min(heaviestNeighbour, bodies[other].invMass);
     }
-    if (bodies[body].invMass >= kLightBodyRatio * heaviestNeighbour && heaviestNeighbour > 0.0)
+    if (!jointed && heaviestNeighbour > 0.0 &&
+        bodies[body].invMass >= kLightBodyRatio * heaviestNeighbour)
       lightBodies_.emplace_back(-bodies[body].invMass, body);
   }
   std::sort(lightBodies_.begin(), lightBodies_.end());
@@ -157,7 +163,7 @@ void ContactIslands::addLightBodies(int island, const std::vector<ConstraintBloc
     auto it = std::lower_bound(incidence_.begin(), incidence_.end(), std::make_pair(body, 0));
     for (; it != incidence_.end() && it->first == body; ++it) {
       const int more = blocks[first + it->second].equality;
-      if (taken_[it->second] || rows + more > maxRows) continue;
+      if (!usable_[it->second] || taken_[it->second] || rows + more > maxRows) continue;
       members_.push_back(it->second);
       rows += more;
     }

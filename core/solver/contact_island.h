@@ -62,10 +62,11 @@ class ContactIslands {
   static constexpr double kRestDepth = 1e-5;
 
   // Chooses this prepare's groups from the built (not yet finished)
-  // blocks of islands [islandBegin, islandEnd) with no joint, every
-  // manifold eligible(block), either the whole island (at most maxRows
-  // normal rows in all) or, when lightBodies is set, its light bodies'
-  // manifolds (addLightBodies). Eligible:
+  // blocks of islands [islandBegin, islandEnd): the whole island when it
+  // has no joint, every manifold is eligible(block) and it has at most
+  // maxRows normal rows in all; otherwise, when lightBodies is set, its
+  // light bodies' eligible manifolds (addLightBodies; joints keep their
+  // blocks). Eligible:
   // not restitutive (solved at once, Newton's cradle would pass its
   // impulse down the row as one shove) and not a physical spring (its
   // softness is real, rows here are rigid). A lone manifold counts too:
@@ -132,12 +133,14 @@ class ContactIslands {
   // stack's K is then banded, and its factor and solves follow the band.
   void addIsland(int island, const std::vector<ConstraintBlock>& blocks,
                  const std::vector<std::int32_t>& islandStart, std::int32_t staticBody);
-  // A group of each light body's manifolds (at most maxRows rows, two
-  // manifolds or more, none in an earlier group), lightest body first.
+  // A group of each light body's usable_ manifolds (at most maxRows rows,
+  // two manifolds or more, none in an earlier group), lightest body
+  // first; bodies with a joint are not taken for light.
   void addLightBodies(int island, const std::vector<ConstraintBlock>& blocks,
                       const std::vector<std::int32_t>& islandStart, std::int32_t staticBody,
                       const std::vector<SolverBody>& bodies, int maxRows);
-  // incidence_: (body, manifold) of island i, by body (the static body left out).
+  // incidence_: (body, block) of island i, by body (the static body left
+  // out).
   void indexBodies(int island, const std::vector<ConstraintBlock>& blocks,
                    const std::vector<std::int32_t>& islandStart, std::int32_t staticBody);
   // A group of the island's manifolds first + k for k in `members`.
@@ -172,6 +175,9 @@ class ContactIslands {
   std::vector<std::int32_t> order_, members_;
   std::vector<std::uint8_t> taken_;
   std::vector<std::pair<double, std::int32_t>> lightBodies_;
+  // select's: whether each manifold of the island at hand may be grouped
+  // (a contact, eligible); joints never are.
+  std::vector<std::uint8_t> usable_;
 };
 
 template <class Eligible>
@@ -191,14 +197,15 @@ void ContactIslands::select(const std::vector<ConstraintBlock>& blocks,
   entryBlock_.clear();
   for (int island = islandBegin; island < islandEnd; ++island) {
     int rows = 0;
-    bool ok = true;
-    for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1] && ok; ++bi) {
+    bool all = true;
+    usable_.clear();
+    for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
       const ConstraintBlock& blk = blocks[bi];
-      ok = blk.unilateral && eligible(blk);
+      usable_.push_back(blk.unilateral && eligible(blk));
+      all = all && usable_.back();
       rows += blk.equality;
     }
-    if (!ok) continue;
-    if (rows <= maxRows)
+    if (all && rows <= maxRows)
       addIsland(island, blocks, islandStart, staticBody);
     else if (lightBodies)
       addLightBodies(island, blocks, islandStart, staticBody, bodies, maxRows);

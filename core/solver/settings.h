@@ -137,13 +137,14 @@ struct SolverSettings {
   // islands, and those with joints, keep one block per manifold. 0: off,
   // the paper's.
   int contactIslandRows = 0;
-  // In a larger island of contacts (a pile), each body four or more times
-  // lighter than a body it touches gets its manifolds solved together as
-  // one exact block like a small island's (at most contactIslandRows
-  // rows), Gauss-Seidel with the other manifolds: a 44 g cylinder pressed
-  // between a 2 kg ball and the ground otherwise passes on only its share
-  // of the ball's weight a sweep and is pushed into the ground. Off: a
-  // larger island keeps one block per manifold.
+  // In an island not solved as one block (a pile; an island with
+  // joints), each body four or more times lighter than a body it touches,
+  // and held by no joint, gets its manifolds solved together as one exact
+  // block like a small island's (at most contactIslandRows rows),
+  // Gauss-Seidel with the other manifolds: a 44 g cylinder pressed between
+  // a 2 kg ball and the ground otherwise passes on only its share of the
+  // ball's weight a sweep and is pushed into the ground. Off: such an
+  // island keeps one block per manifold.
   bool lightBodyGroups = false;
   // Threads that sweep independent islands at once (TBB): the result is
   // bitwise the same whatever the count, as islands share no movable

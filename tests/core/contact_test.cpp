@@ -309,7 +309,7 @@ struct PlankLoad {
   double cornerSpread = 0.0;  // largest / smallest of the block's corner impulses
 };
 PlankLoad plankLoad(int substeps, int contactIslandRows, bool lightBodyGroups = true,
-                    int blocks = 1) {
+                    int blocks = 1, bool jointed = false) {
   World world;
   SolverSettings s = SolverSettings::subStepped(substeps);
   s.contactIslandRows = contactIslandRows;
@@ -323,8 +323,16 @@ PlankLoad plankLoad(int substeps, int contactIslandRows, bool lightBodyGroups = 
   }
   const BodyId plank = addBox(world, Vec3(0, 0, 0.525), 1.0, Vec3(1.0, 0.15, 0.025));
   BodyId block = kWorldBody;
-  for (int k = 0; k < blocks; ++k)
+  for (int k = 0; k < blocks; ++k) {
+    const BodyId below = block;
     block = addBox(world, Vec3(0, 0, 0.75 + 0.4 * k), 1000.0, Vec3(0.2, 0.2, 0.2));
+    if (jointed && k > 0) {  // glued to the one below
+      FixedJointDesc glue;
+      glue.common.bodyA = below;
+      glue.common.bodyB = block;
+      world.createJoint(glue);
+    }
+  }
   PlankLoad out;
   for (int i = 0; i < 300; ++i) {
     world.step(1.0 / 60.0);
@@ -363,25 +371,30 @@ TEST(Contact, ThousandKilogramsOnAOneKilogramPlankRestAtAnySubstepCount) {
   }
 }
 
-// Islands larger than contactIslandRows keep one block per manifold, but
-// a body four or more times lighter than one it touches has its manifolds
-// solved as one exact group (SolverSettings::lightBodyGroups): two
-// 1000 kg blocks on the 1 kg plank make an island of 16 normal rows, here
-// over a limit of 12, and the plank's 12 rows (both supports and the
-// block) pass the load to the supports at once.
+// Islands larger than contactIslandRows, and islands with joints, keep
+// one block per manifold, but a body four or more times lighter than one
+// it touches has its manifolds solved as one exact group
+// (SolverSettings::lightBodyGroups): two 1000 kg blocks on the 1 kg plank
+// make an island of 16 normal rows, here over a limit of 12, and the
+// plank's 12 rows (both supports and the block) pass the load to the
+// supports at once. The same with the blocks glued by a fixed joint,
+// under the default limit (an island with a joint is never one group).
 TEST(Contact, ALightBodyInALargerIslandPassesItsLoadOnAtOnce) {
-  for (int substeps : {1, 10}) {
-    const PlankLoad grouped = plankLoad(substeps, 12, true, 2);
-    const PlankLoad manifolds = plankLoad(substeps, 12, false, 2);
-    std::printf(
-        "%2d sub-steps, 2 t on the plank: with the light-body group the plank drops %.3f mm "
-        "(the top block %.3f mm); manifold by manifold %.1f mm (%.1f mm)\n",
-        substeps, 1e3 * grouped.plankDrop, 1e3 * grouped.blockDrop, 1e3 * manifolds.plankDrop,
-        1e3 * manifolds.blockDrop);
-    EXPECT_LT(std::abs(grouped.plankDrop), 1e-4) << substeps;
-    // The blocks' own manifold stays one soft block (not light: 1:1).
-    EXPECT_LT(std::abs(grouped.blockDrop), 5e-3) << substeps;
-    EXPECT_GT(manifolds.plankDrop, 0.01) << substeps;  // what the group is for
+  for (const bool jointed : {false, true}) {
+    const int limit = jointed ? SolverSettings::kContactIslandRows : 12;
+    for (int substeps : {1, 10}) {
+      const PlankLoad grouped = plankLoad(substeps, limit, true, 2, jointed);
+      const PlankLoad manifolds = plankLoad(substeps, limit, false, 2, jointed);
+      std::printf(
+          "%2d sub-steps, 2 t on the plank%s: with the light-body group the plank drops %.3f mm "
+          "(the top block %.3f mm); manifold by manifold %.1f mm (%.1f mm)\n",
+          substeps, jointed ? " (jointed)" : "", 1e3 * grouped.plankDrop, 1e3 * grouped.blockDrop,
+          1e3 * manifolds.plankDrop, 1e3 * manifolds.blockDrop);
+      EXPECT_LT(std::abs(grouped.plankDrop), 1e-4) << substeps << jointed;
+      // The blocks' own manifold stays one soft block (not light: 1:1).
+      EXPECT_LT(std::abs(grouped.blockDrop), 5e-3) << substeps << jointed;
+      EXPECT_GT(manifolds.plankDrop, 0.01) << substeps << jointed;  // what the group is for
+    }
   }
 }
 
