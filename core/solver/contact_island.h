@@ -178,6 +178,9 @@ class ContactIslands {
   // select's: whether each manifold of the island at hand may be grouped
   // (a contact, eligible); joints never are.
   std::vector<std::uint8_t> usable_;
+  // addLightBodies': the bodies a joint holds carry the call's stamp.
+  std::vector<std::uint32_t> jointStamp_;
+  std::uint32_t stamp_ = 0;
 };
 
 template <class Eligible>
