@@ -123,6 +123,7 @@ void ContactIslands::addIsland(int island, const std::vector<ConstraintBlock>& b
   }
   groupsOfIsland_[island].first = static_cast<std::int32_t>(groups_.size());
   appendGroup(blocks, first, order_);
+  groups_.back().wholeIsland = true;
   groupsOfIsland_[island].second = static_cast<std::int32_t>(groups_.size());
 }
 

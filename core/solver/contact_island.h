@@ -89,7 +89,10 @@ class ContactIslands {
   // The groups of island i: [groupsBegin, groupsEnd).
   int groupsBegin(int island) const { return groupsOfIsland_[island].first; }
   int groupsEnd(int island) const { return groupsOfIsland_[island].second; }
-  // f(block index) for each manifold of group g.
+  // Whether group g is its whole island (else a light body's manifolds).
+  bool wholeIsland(int g) const { return groups_[g].wholeIsland; }
+  // f(block index) for each manifold of group g, in the island's order
+  // (a light body's; a whole island's group is breadth-first).
   template <class F>
   void forEachBlock(int g, F f) const {
     const Group& group = groups_[g];
@@ -120,6 +123,7 @@ class ContactIslands {
     std::int32_t activeCount = 0;
     std::int32_t nullCount = 0;  // null basis vectors of the active set's K
     bool factorStale = true;
+    bool wholeIsland = false;
   };
   // The most rounds of the active set a solve may take.
   static constexpr int kMaxRounds = 8;

@@ -138,7 +138,7 @@ struct SolverSettings {
   // the paper's.
   int contactIslandRows = 0;
   // In an island not solved as one block (a pile; an island with
-  // joints), each body four or more times lighter than a body it touches,
+  // joints), each body three or more times lighter than a body it touches,
   // and held by no joint, gets its manifolds solved together as one exact
   // block like a small island's (at most contactIslandRows rows),
   // Gauss-Seidel with the other manifolds: a 44 g cylinder pressed between

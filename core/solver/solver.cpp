@@ -1394,10 +1394,18 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     if (contactIslands_.solve(g, useBias, blocks_, rows_, bodies_) ==
         ContactIslands::Outcome::Exact)
       continue;
-    contactIslands_.forEachBlock(g, [&](std::int32_t bi) {
+    // In the island's order (a whole island's group keeps its own,
+    // breadth-first from the ground, for its factor).
+    auto finish = [&](std::int32_t bi) {
       ConstraintBlock& blk = blocks_[bi];
       solveNormals(blk, useBias, mode, bodies_[blk.bodyA], bodies_[blk.bodyB]);
-    });
+    };
+    if (contactIslands_.wholeIsland(g)) {
+      for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi)
+        finish(bi);
+    } else {
+      contactIslands_.forEachBlock(g, finish);
+    }
   }
 }
 

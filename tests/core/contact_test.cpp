@@ -372,7 +372,7 @@ TEST(Contact, ThousandKilogramsOnAOneKilogramPlankRestAtAnySubstepCount) {
 }
 
 // Islands larger than contactIslandRows, and islands with joints, keep
-// one block per manifold, but a body four or more times lighter than one
+// one block per manifold, but a body three or more times lighter than one
 // it touches has its manifolds solved as one exact group
 // (SolverSettings::lightBodyGroups): two 1000 kg blocks on the 1 kg plank
 // make an island of 16 normal rows, here over a limit of 12, and the

@@ -76,7 +76,7 @@ ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
 ODE_API void dWorldSetBlockContactIslandRows(dWorldID w, int rows);
 ODE_API int dWorldGetBlockContactIslandRows(dWorldID w);
 /* In a contact island with more points than that (a pile), solve the
- * contacts of each body four or more times lighter than one it touches
+ * contacts of each body three or more times lighter than one it touches
  * as one exact block (1), or keep one block per contact (0). A light body
  * pressed between a heavy one and the ground then passes the load on at
  * once. Holds under every solver; the default is the solver's own (on
