@@ -75,11 +75,12 @@ ODE_API int dWorldGetBlockIslandBlockRows(dWorldID w);
  * BLOCKSTEP_CONTACT_ISLAND_ROWS. */
 ODE_API void dWorldSetBlockContactIslandRows(dWorldID w, int rows);
 ODE_API int dWorldGetBlockContactIslandRows(dWorldID w);
-/* In a contact island with more points than that (a pile), solve the
- * contacts of each body three or more times lighter than one it touches
- * as one exact block (1), or keep one block per contact (0). A light body
- * pressed between a heavy one and the ground then passes the load on at
- * once. Holds under every solver; the default is the solver's own (on
+/* In a contact island not solved as one block (more points than that, a
+ * pile; or joints in it), solve the contacts of each body three or more
+ * times lighter than one it touches, and held by no joint, as one exact
+ * block (1), or keep one block per contact (0). A light body pressed
+ * between a heavy one and the ground then passes the load on at once.
+ * Holds under every solver; the default is the solver's own (on
  * sub-stepped, off for dWorldStep and the paper preset).
  * BLOCKSTEP_LIGHT_BODY_GROUPS. */
 ODE_API void dWorldSetBlockLightBodyGroups(dWorldID w, int on);
