@@ -78,20 +78,9 @@ TEST(NoAllocation, LightBodyGroupsAllocateNothingAfterWarmUp) {
   SolverSettings s = SolverSettings::subStepped(10);
   s.contactIslandRows = 12;
   world.setSettings(s);
-  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
-  for (double x : {-0.8, 0.8}) {
-    Shape support = Shape::box(kWorldBody, Vec3(0.1, 0.2, 0.25));
-    support.localPosition = Vec3(x, 0.0, 0.25);
-    world.addShape(support);
-  }
-  auto addBox = [&](const Vec3& position, double mass, const Vec3& half) {
-    const BodyId id = world.createBody(test::boxBody(position, mass, 2.0 * half));
-    world.addShape(Shape::box(id, half));
-    return id;
-  };
-  const BodyId plank = addBox(Vec3(0, 0, 0.525), 1.0, Vec3(1.0, 0.15, 0.025));
-  addBox(Vec3(0, 0, 0.75), 1000.0, Vec3(0.2, 0.2, 0.2));
-  addBox(Vec3(0, 0, 1.15), 1000.0, Vec3(0.2, 0.2, 0.2));
+  const BodyId plank = test::plankOnTwoSupports(world);
+  test::addBoxBody(world, Vec3(0, 0, 0.75), 1000.0, Vec3(0.2, 0.2, 0.2));
+  test::addBoxBody(world, Vec3(0, 0, 1.15), 1000.0, Vec3(0.2, 0.2, 0.2));
   for (int i = 0; i < 60; ++i)
     world.step(1.0 / 60.0);
   const long before = test::allocationCount();

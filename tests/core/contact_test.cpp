@@ -315,13 +315,7 @@ PlankLoad plankLoad(int substeps, int contactIslandRows, bool lightBodyGroups = 
   s.contactIslandRows = contactIslandRows;
   s.lightBodyGroups = lightBodyGroups;
   world.setSettings(s);
-  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
-  for (double x : {-0.8, 0.8}) {
-    Shape support = Shape::box(kWorldBody, Vec3(0.1, 0.2, 0.25));
-    support.localPosition = Vec3(x, 0.0, 0.25);
-    world.addShape(support);
-  }
-  const BodyId plank = addBox(world, Vec3(0, 0, 0.525), 1.0, Vec3(1.0, 0.15, 0.025));
+  const BodyId plank = test::plankOnTwoSupports(world);
   BodyId block = kWorldBody;
   for (int k = 0; k < blocks; ++k) {
     const BodyId below = block;

@@ -133,6 +133,24 @@ TEST(OdeContacts, StackOnFourPointsRestsAtAnySubstepCount) {
   }
 }
 
+// The compare runner's plank_load without its load: two static supports
+// (0.2 x 0.4 x 0.5 m at x = -0.8 and 0.8) and a 1 kg plank (2 x 0.3 x 0.05
+// m) across them, all exactly touching. Returns the plank; a load on it
+// rests at z = 0.55 + its half height.
+dBodyID plankOnTwoSupports(ContactScene& c) {
+  for (double x : {-0.8, 0.8}) {
+    dGeomID support = dCreateBox(c.space, 0.2, 0.4, 0.5);
+    dGeomSetPosition(support, x, 0.0, 0.25);
+  }
+  dBodyID plank = dBodyCreate(c.scene.world);
+  dMass m;
+  dMassSetBoxTotal(&m, 1.0, 2.0, 0.3, 0.05);
+  dBodySetMass(plank, &m);
+  dBodySetPosition(plank, 0.0, 0.0, 0.525);
+  dGeomSetBody(dCreateBox(c.space, 2.0, 0.3, 0.05), plank);
+  return plank;
+}
+
 // A 1000 kg block on a 1 kg plank laid across two static supports, all
 // exactly touching (the compare runner's plank_load): dWorldStep holds it
 // (one LCP for the island); Gauss-Seidel contact by contact passes the
@@ -142,16 +160,7 @@ TEST(OdeContacts, StackOnFourPointsRestsAtAnySubstepCount) {
 TEST(OdeContacts, TonneOnAOneKilogramPlankRestsAsDirectSolver) {
   auto drop = [](Stepper stepper, int substeps, int contactRows) {
     ContactScene c;
-    for (double x : {-0.8, 0.8}) {
-      dGeomID support = dCreateBox(c.space, 0.2, 0.4, 0.5);
-      dGeomSetPosition(support, x, 0.0, 0.25);
-    }
-    dBodyID plank = dBodyCreate(c.scene.world);
-    dMass m;
-    dMassSetBoxTotal(&m, 1.0, 2.0, 0.3, 0.05);
-    dBodySetMass(plank, &m);
-    dBodySetPosition(plank, 0.0, 0.0, 0.525);
-    dGeomSetBody(dCreateBox(c.space, 2.0, 0.3, 0.05), plank);
+    plankOnTwoSupports(c);
     const dBodyID block = c.box(0.0, 0.0, 0.75, 0.4, 1000.0);
     dWorldSetBlockSubsteppedSolver(c.scene.world, substeps);
     dWorldSetBlockContactIslandRows(c.scene.world, contactRows);
@@ -183,16 +192,7 @@ TEST(OdeContacts, TonneOnAOneKilogramPlankRestsAsDirectSolver) {
 TEST(OdeContacts, LightPlankInALargerIslandRestsAsDirectSolver) {
   auto drop = [](Stepper stepper, int lightGroups) {
     ContactScene c;
-    for (double x : {-0.8, 0.8}) {
-      dGeomID support = dCreateBox(c.space, 0.2, 0.4, 0.5);
-      dGeomSetPosition(support, x, 0.0, 0.25);
-    }
-    dBodyID plank = dBodyCreate(c.scene.world);
-    dMass m;
-    dMassSetBoxTotal(&m, 1.0, 2.0, 0.3, 0.05);
-    dBodySetMass(plank, &m);
-    dBodySetPosition(plank, 0.0, 0.0, 0.525);
-    dGeomSetBody(dCreateBox(c.space, 2.0, 0.3, 0.05), plank);
+    const dBodyID plank = plankOnTwoSupports(c);
     c.box(0.0, 0.0, 0.75, 0.4, 1000.0);
     c.box(0.0, 0.0, 1.15, 0.4, 1000.0);
     dWorldSetBlockSubsteppedSolver(c.scene.world, 10);

@@ -26,6 +26,27 @@ inline BodyDesc sphereBody(const Vec3& position, double mass, double radius) {
   return d;
 }
 
+// A box body of the given half extents with its box shape.
+inline BodyId addBoxBody(World& world, const Vec3& position, double mass, const Vec3& half) {
+  const BodyId id = world.createBody(boxBody(position, mass, 2.0 * half));
+  world.addShape(Shape::box(id, half));
+  return id;
+}
+
+// The compare runner's plank_load, natively, without its load: the ground
+// plane, two static supports (0.2 x 0.4 x 0.5 m at x = -0.8 and 0.8) and
+// a 1 kg plank (2 x 0.3 x 0.05 m) across them, all exactly touching.
+// Returns the plank; a load on it rests at z = 0.55 + its half height.
+inline BodyId plankOnTwoSupports(World& world) {
+  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  for (double x : {-0.8, 0.8}) {
+    Shape support = Shape::box(kWorldBody, Vec3(0.1, 0.2, 0.25));
+    support.localPosition = Vec3(x, 0.0, 0.25);
+    world.addShape(support);
+  }
+  return addBoxBody(world, Vec3(0, 0, 0.525), 1.0, Vec3(1.0, 0.15, 0.025));
+}
+
 // A hinge between the world and body b, anchored at the origin.
 inline JointId hingeToWorld(World& world, BodyId b, const Vec3& axis, const Limit& limit = {},
                             const Motor& motor = {}) {
