@@ -475,7 +475,12 @@ void buildHair(Scene& s, bool strandContacts) {
       dBodySetQuaternion(b, q);
       dGeomID g = dCreateCapsule(s.space(), kSegR, kSegLen - 2 * kSegR);
       s.addGeom(g, b);
-      dGeomSetCategoryBits(g, 2);
+      // ODE pairs two geoms when either's category meets the other's
+      // collide bits, so the root keeps no category either: with category
+      // 2 the head's full mask still took it, and a root lying along the
+      // head, pinned at the surface, had to sink its cap 3.9 mm: the
+      // contact and the pin could not both hold.
+      dGeomSetCategoryBits(g, i == 0 ? 0 : 2);
       dGeomSetCollideBits(g, i == 0 ? 0 : strandContacts ? 3 : 1);
       const double joint = i * kSegLen;
       s.ball(b, previous, along(joint, 0), along(joint, 1), along(joint, 2));

@@ -46,6 +46,56 @@ TEST(CompareScenes, BuiltAsScenesMdSays) {
   }
 }
 
+// SCENES.md: hair capsules collide with the head, the root segment not.
+// Each root is laid down along the head about its pin, its cap 3.9 mm
+// into the sphere, where a contact and the pin cannot both hold; ODE's
+// filter (either geom's category against the other's collide bits) must
+// pass none of them on, with and without strand-strand contacts.
+TEST(CompareScenes, HairRootsLyingOnTheHeadMakeNoContacts) {
+  for (const char* name : {"hair", "hair_touching"}) {
+    const auto hair = makeScene(name);
+    const dVector3 head = {0.0, 0.0, 1.6};
+    dGeomID headGeom = dCreateSphere(nullptr, 0.1);  // in no space: dCollide alone
+    dGeomSetPosition(headGeom, head[0], head[1], head[2]);
+    int rootsInside = 0;
+    for (std::size_t k = 0; k < hair->bodies().size(); k += 16) {
+      dBodyID root = hair->bodies()[k];
+      const dReal* p = dBodyGetPosition(root);
+      double n[3], len = 0.0;
+      for (int c = 0; c < 3; ++c)
+        len += (p[c] - head[c]) * (p[c] - head[c]);
+      len = std::sqrt(len);
+      for (int c = 0; c < 3; ++c)
+        n[c] = (p[c] - head[c]) / len;
+      // A tangent t = n x (some axis not along n); the pin is at head + 0.1 n.
+      const double a[3] = {std::abs(n[0]) < 0.9 ? 1.0 : 0.0, std::abs(n[0]) < 0.9 ? 0.0 : 1.0, 0.0};
+      double t[3] = {n[1] * a[2] - n[2] * a[1], n[2] * a[0] - n[0] * a[2],
+                     n[0] * a[1] - n[1] * a[0]};
+      const double tl = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+      for (double& c : t)
+        c /= tl;
+      double centre[3];
+      for (int c = 0; c < 3; ++c)
+        centre[c] = head[c] + 0.1 * n[c] + 0.01 * t[c];
+      dBodySetPosition(root, centre[0], centre[1], centre[2]);
+      dQuaternion q;  // the capsule's z axis along t
+      const double angle = std::acos(std::clamp(t[2], -1.0, 1.0));
+      dQFromAxisAndAngle(q, -t[1], t[0], 0.0, angle);
+      if (std::abs(t[0]) + std::abs(t[1]) < 1e-12) dQSetIdentity(q);
+      dBodySetQuaternion(root, q);
+      // Unfiltered, the root and the head overlap by 3.9 mm.
+      dContactGeom contact;
+      if (dCollide(dBodyGetFirstGeom(root), headGeom, 1, &contact, sizeof(contact)) == 1 &&
+          contact.depth > 0.0038 && contact.depth < 0.004)
+        ++rootsInside;
+    }
+    dGeomDestroy(headGeom);
+    EXPECT_EQ(rootsInside, 64) << name;
+    hair->collide();
+    EXPECT_EQ(hair->contactCount(), 0) << name;
+  }
+}
+
 // --help gives every built-in scene a line saying what it is.
 TEST(CompareScenes, EveryBuiltInSceneSaysWhatItIs) {
   for (const std::string& name : sceneNames())
