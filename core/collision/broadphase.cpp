@@ -60,35 +60,66 @@ void BroadPhase::findPairs(const std::vector<Aabb>& boxes, BroadPhaseMethod meth
         if (boxes[i].overlaps(boxes[j])) pairs.emplace_back(i, j);
     return;
   }
-  if (static_cast<int>(order_.size()) != n) {
+  // Sweep along the axis the boxes' centres spread most along: a pile
+  // ten layers deep swept along x tested each box against its whole
+  // column. The axis changes only when another spreads kAxisSwitch times
+  // as far, so the order stays nearly sorted from call to call.
+  Vec3 sum = Vec3::Zero(), sumSquares = Vec3::Zero();
+  int counted = 0;
+  for (const Aabb& box : boxes) {
+    if (!(box.lo.x() <= box.hi.x()) || !box.lo.allFinite() || !box.hi.allFinite()) continue;
+    const Vec3 centre = 0.5 * (box.lo + box.hi);
+    sum += centre;
+    sumSquares += centre.cwiseProduct(centre);
+    ++counted;
+  }
+  bool resort = static_cast<int>(order_.size()) != n;
+  if (counted > 1) {
+    const Vec3 mean = sum / counted;
+    const Vec3 spread = sumSquares / counted - mean.cwiseProduct(mean);
+    int widest = 0;
+    spread.maxCoeff(&widest);
+    if (widest != axis_ && spread[widest] > kAxisSwitch * spread[axis_]) {
+      axis_ = widest;
+      resort = true;
+    }
+  }
+  const int ax = axis_;
+  if (resort) {
     order_.resize(n);
     for (int i = 0; i < n; ++i)
       order_[i] = i;
-  }
-  // Insertion sort by lo.x: nearly sorted from the last call.
-  for (int k = 1; k < n; ++k) {
-    const int moving = order_[k];
-    const double key = boxes[moving].lo.x();
-    int j = k - 1;
-    while (j >= 0 && boxes[order_[j]].lo.x() > key) {
-      order_[j + 1] = order_[j];
-      --j;
+    std::sort(order_.begin(), order_.end(), [&](int i, int j) {
+      return boxes[i].lo[ax] < boxes[j].lo[ax] || (boxes[i].lo[ax] == boxes[j].lo[ax] && i < j);
+    });
+  } else {
+    // Insertion sort by lo along the axis: nearly sorted from the last call.
+    for (int k = 1; k < n; ++k) {
+      const int moving = order_[k];
+      const double key = boxes[moving].lo[ax];
+      int j = k - 1;
+      while (j >= 0 && boxes[order_[j]].lo[ax] > key) {
+        order_[j + 1] = order_[j];
+        --j;
+      }
+      order_[j + 1] = moving;
     }
-    order_[j + 1] = moving;
   }
   // The boxes in that order, side by side: the sweep reads each box's
-  // neighbours along x one after another (through order_ it took 5 ns a
-  // test, most of a cloth's collision).
+  // neighbours along the axis one after another (through order_ it took
+  // 5 ns a test, most of a cloth's collision).
   sorted_.resize(n);
   for (int k = 0; k < n; ++k)
     sorted_[k] = boxes[order_[k]];
+  const int ay = (ax + 1) % 3, az = (ax + 2) % 3;
   for (int k = 0; k < n; ++k) {
     const Aabb& a = sorted_[k];
-    if (!(a.lo.x() <= a.hi.x())) continue;  // empty: sorted last, overlaps nothing
-    for (int l = k + 1; l < n && sorted_[l].lo.x() <= a.hi.x(); ++l) {
+    if (!(a.lo.x() <= a.hi.x())) continue;  // empty: overlaps nothing
+    for (int l = k + 1; l < n && sorted_[l].lo[ax] <= a.hi[ax]; ++l) {
       const Aabb& b = sorted_[l];
-      // x overlaps already (b starts within a, and no earlier than a).
-      if (a.lo.y() > b.hi.y() || b.lo.y() > a.hi.y() || a.lo.z() > b.hi.z() || b.lo.z() > a.hi.z())
+      // Overlapping along the axis already (b starts within a, and no
+      // earlier than a).
+      if (a.lo[ay] > b.hi[ay] || b.lo[ay] > a.hi[ay] || a.lo[az] > b.hi[az] || b.lo[az] > a.hi[az])
         continue;
       const int i = order_[k], j = order_[l];
       pairs.emplace_back(std::min(i, j), std::max(i, j));

@@ -38,11 +38,18 @@ class BroadPhase {
   // nothing.
   void findPairs(const std::vector<Aabb>& boxes, BroadPhaseMethod method,
                  std::vector<std::pair<int, int>>& pairs);
+  // The axis sweep and prune sweeps along (0 x, 1 y, 2 z): the one the
+  // boxes' centres spread most along, kept until another spreads
+  // kAxisSwitch times as far.
+  int sweepAxis() const { return axis_; }
 
  private:
   void sortPairs(int n, std::vector<std::pair<int, int>>& pairs);
 
-  std::vector<int> order_;    // sweep and prune: box indices by lo.x, kept across calls
+  // Another axis must spread this many times as far to become the sweep's.
+  static constexpr double kAxisSwitch = 1.5;
+  int axis_ = 0;
+  std::vector<int> order_;    // sweep and prune: box indices by lo along axis_, kept across calls
   std::vector<Aabb> sorted_;  // the boxes in that order (scratch)
   std::vector<int> pairStart_, pairFill_;         // sortPairs' scratch
   std::vector<std::pair<int, int>> sortedPairs_;  // sortPairs' scratch

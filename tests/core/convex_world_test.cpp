@@ -71,6 +71,48 @@ TEST(BroadPhase, AllPairsAndSweepAndPruneFindTheSamePairsAsEveryBoxTestedWithEve
   EXPECT_GT(total, 5000u);  // the plane alone meets about half the shapes each step
 }
 
+// Sweep and prune sweeps along the axis the boxes spread most along, and
+// turns to another only when it spreads 1.5 times as far: a column 30 m
+// tall is swept along z, the same boxes laid out 60 m wide along x. The pairs are every box tested
+// with every other's, before and after the turn, and on the calls that keep the axis.
+TEST(BroadPhase, SweepFollowsTheWidestSpreadAndFindsTheSamePairs) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> across(-0.5, 0.5), along(0.0, 30.0), jiggle(-0.05, 0.05);
+  std::vector<Shape> shapes;
+  std::vector<ShapePose> poses;
+  for (int i = 0; i < 600; ++i) {
+    shapes.push_back(randomShape(rng, 0));
+    poses.push_back(ShapePose{Vec3(across(rng), across(rng), along(rng)), Mat3::Identity()});
+  }
+  BroadPhase sweep;
+  std::vector<Aabb> boxes(shapes.size());
+  std::vector<std::pair<int, int>> expected, found;
+  auto check = [&](int axis, const char* what) {
+    for (std::size_t i = 0; i < shapes.size(); ++i)
+      boxes[i] = shapeAabb(shapes[i], poses[i], 0.01);
+    expected.clear();
+    for (int i = 0; i < static_cast<int>(boxes.size()); ++i)
+      for (int j = i + 1; j < static_cast<int>(boxes.size()); ++j)
+        if (boxes[i].overlaps(boxes[j])) expected.emplace_back(i, j);
+    sweep.findPairs(boxes, BroadPhaseMethod::SweepAndPrune, found);
+    EXPECT_EQ(sweep.sweepAxis(), axis) << what;
+    EXPECT_EQ(found, expected) << what;
+    EXPECT_GT(expected.size(), 100u) << what;
+  };
+  check(2, "standing");
+  for (ShapePose& p : poses)
+    p.position += Vec3(jiggle(rng), jiggle(rng), jiggle(rng));
+  check(2, "standing, moved a little");
+  for (ShapePose& p : poses)
+    p.position = Vec3(2.0 * p.position.z(), p.position.x(), p.position.y());
+  check(0, "laid along x");
+  // Squeezed along x to +-0.45 m: y and z (+-0.5 m) spread wider, but not
+  // 1.5 times as far, so x stays.
+  for (ShapePose& p : poses)
+    p.position.x() = 0.9 * (p.position.x() / 60.0 - 0.5);
+  check(0, "narrowed along x, nothing 1.5 times wider");
+}
+
 TEST(BroadPhase, BoxesHoldTheirShapes) {
   // Every support point of a shape, in any direction, lies in its box.
   std::mt19937 rng(3);
