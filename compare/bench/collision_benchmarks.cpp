@@ -38,6 +38,7 @@ void broadPhase(benchmark::State& state, BroadPhaseMethod method) {
     benchmark::DoNotOptimize(pairs.data());
   }
   state.counters["pairs"] = static_cast<double>(pairs.size());
+  state.counters["axis"] = phase.sweepAxis();
 }
 BENCHMARK_CAPTURE(broadPhase, all_pairs, BroadPhaseMethod::AllPairs)
     ->Arg(100)
@@ -79,6 +80,7 @@ void broadPhaseSheet(benchmark::State& state, BroadPhaseMethod method) {
     benchmark::DoNotOptimize(pairs.data());
   }
   state.counters["pairs"] = static_cast<double>(pairs.size());
+  state.counters["axis"] = phase.sweepAxis();
 }
 BENCHMARK_CAPTURE(broadPhaseSheet, sweep_and_prune, BroadPhaseMethod::SweepAndPrune)
     ->Arg(32)
@@ -113,6 +115,7 @@ void broadPhaseColumn(benchmark::State& state) {
     benchmark::DoNotOptimize(pairs.data());
   }
   state.counters["pairs"] = static_cast<double>(pairs.size());
+  state.counters["axis"] = phase.sweepAxis();
 }
 BENCHMARK(broadPhaseColumn)->Arg(1000)->Arg(10000)->Unit(benchmark::kMicrosecond);
 

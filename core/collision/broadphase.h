@@ -7,6 +7,7 @@
 // bodies move little, as they do between steps).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -38,19 +39,24 @@ class BroadPhase {
   // nothing.
   void findPairs(const std::vector<Aabb>& boxes, BroadPhaseMethod method,
                  std::vector<std::pair<int, int>>& pairs);
-  // The axis sweep and prune sweeps along (0 x, 1 y, 2 z): the one the
-  // boxes' centres spread most along, kept until another spreads
-  // kAxisSwitch times as far.
-  int sweepAxis() const { return axis_; }
+  // The axis sweep and prune sweeps along (0 x, 1 y, 2 z): the one that
+  // left the fewest boxes to test when last reviewed.
+  int sweepAxis() const { return axes_[0]; }
+  // Calls between reviews of the sweep's axis.
+  static constexpr int kAxisReview = 64;
 
  private:
   void sortPairs(int n, std::vector<std::pair<int, int>>& pairs);
+  void sortAlong(const std::vector<Aabb>& boxes, int axis);
+  double testsAlong(const std::vector<Aabb>& boxes, int axis);
 
-  // Another axis must spread this many times as far to become the sweep's.
-  static constexpr double kAxisSwitch = 1.5;
-  int axis_ = 0;
-  std::vector<int> order_;    // sweep and prune: box indices by lo along axis_, kept across calls
-  std::vector<Aabb> sorted_;  // the boxes in that order (scratch)
+  std::array<int, 3> axes_ = {0, 1, 2};  // the sweep's, then the others' test order
+  int sinceReview_ = 0;
+  // Sweep and prune: box indices by lo along each axis, kept across calls
+  // (the swept axis's every call, the others' at each review).
+  std::array<std::vector<int>, 3> orders_;
+  std::vector<double> starts_;                    // testsAlong's scratch
+  std::vector<Aabb> sorted_;                      // the boxes in that order (scratch)
   std::vector<int> pairStart_, pairFill_;         // sortPairs' scratch
   std::vector<std::pair<int, int>> sortedPairs_;  // sortPairs' scratch
 };
