@@ -29,9 +29,11 @@ struct CorePenetration {
   Vec3 position = Vec3::Zero();  // midway between the cores' deepest points
 };
 
-// EPA (expanding polytope) through libccd's ccdGJKPenetration. `found` is
-// false when libccd sees no overlap (cores merely touching) or gives a
-// non-finite answer.
+// EPA (expanding polytope) through libccd's ccdGJKPenetration, its answer
+// checked against the overlap along the line of centres and the cores'
+// face normals (the least of them wins: libccd can end on a far face).
+// `found` is false when libccd sees no overlap (cores merely touching) or
+// gives a non-finite answer.
 CorePenetration corePenetration(const PosedConvex& a, const PosedConvex& b);
 
 }  // namespace blockstep

@@ -407,6 +407,48 @@ TEST(ConvexCollision, AHullVertexPastABoxFacesEdgeKeepsItsDepth) {
   EXPECT_LT((m.normal - Vec3(-0.584553, 0.272408, -0.764259)).norm(), 1e-5);
 }
 
+TEST(ConvexCollision, AHullRestingOnABoxFaceIsNotTakenForDeep) {
+  // A hull resting 10 um against a box's face in the 1,000-shape pile
+  // (the poses the core held at 40 sub-steps, frame 109): libccd's EPA
+  // stopped on a far face, 160 mm deep, the line of centres said 149 mm,
+  // and the push-out threw the 0.55 kg hull out at 23 m/s (279 J gained
+  // in a frame). The box face's normal is the least overlap.
+  const Shape box =
+      Shape::box(0, Vec3(0.084850242920509675, 0.15065116685799493, 0.16642529588307675));
+  const std::vector<Vec3> points = {
+      Vec3(-0.017249901787736312, 0.028395295581848223, -0.085661174626580072),
+      Vec3(0.11481474765333638, -0.11693603476509146, -0.022809746772327361),
+      Vec3(0.014504690567599086, -0.061805047228626869, -0.0084113601587858643),
+      Vec3(0.10232766229283438, -0.052372187942228171, 0.051094949127616709),
+      Vec3(0.094355594663826023, -0.0085131473731015501, 0.079128483579983686),
+      Vec3(-0.1439987140060201, 0.043255508903431217, 0.012708959218964694),
+      Vec3(-0.014901955634196058, 0.058052107642579912, 0.060167026433930945),
+      Vec3(-0.079003173517952302, 0.066146794546027676, -0.076579667068536153),
+      Vec3(-0.07435228953291978, 0.054461603473011967, 0.018293626818192271),
+      Vec3(0.11435121321569934, -0.048143251773182683, 0.047949845534797725)};
+  const Shape hull =
+      Shape::convex(1, std::make_shared<const ConvexHull>(ConvexHull::fromPoints(points)));
+  const ShapePose boxPose =
+      ShapePose{Vec3(0.24851312156129435, 0.92560803852716667, 0.18585834617489033),
+                (Mat3() << 0.32834895997073033, -0.13141323468982452, 0.93537025943446417,
+                 0.93825975640802772, 0.15953115693197994, -0.30695022311946984,
+                 -0.10888337793845332, 0.97840705829235564, 0.17568163903040879)
+                    .finished()};
+  const ShapePose hullPose =
+      ShapePose{Vec3(0.10081023939923481, 0.81678611767979326, 0.12252878427908045),
+                (Mat3() << -0.99696991512563349, -0.076380752814921002, -0.014729865369838467,
+                 -0.021763056566593206, 0.092082523454556031, 0.99551352489211353,
+                 -0.074681709295294607, 0.99281760131137242, -0.093465784237153127)
+                    .finished()};
+  ContactManifold m;
+  ASSERT_EQ(collideConvex(box, boxPose, hull, hullPose, kMargin, m), 4);
+  // Never deeper than the least overlap over 20,000 directions, and as
+  // the separating-axis test along the box's face normal gives it.
+  EXPECT_GE(deepest(m), -leastProjectedOverlap(box, boxPose, hull, hullPose) - 1e-9);
+  EXPECT_NEAR(deepest(m), -1.0e-5, 2e-6);
+  EXPECT_LT((m.normal - Vec3(-0.3283, -0.9383, 0.1089)).norm(), 1e-3) << m.normal.transpose();
+}
+
 TEST(ConvexCollision, CapsulesNearCylindersAreNotTakenForOverlapping) {
   // Capsules beside cylinders in the 1,000-shape pile (the poses the core
   // held). GJK's support points on the cylinder's round side bunched up
