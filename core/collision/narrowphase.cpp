@@ -9,7 +9,8 @@
 namespace blockstep {
 namespace {
 
-// How much shallower than GJK/EPA's separation a clipped manifold's
+// How much shallower than the separation GJK/EPA or the separating-axis
+// test found a clipped manifold's
 // deepest point may be (plus a tenth of the depth), m: clipping measures
 // each point to the reference face's plane, so a face tilted off the
 // normal or a round side's polygon reads a little shallower.
@@ -177,7 +178,19 @@ int collideBoxes(const Shape& a, const ShapePose& pa, const Shape& b, const Shap
   const bool refIsA = faceAxis < 3;
   const Vec3 axis = refIsA ? RA.col(faceAxis) : RB.col(faceAxis - 3);
   const Vec3 n = axis.dot(d) >= 0.0 ? axis : Vec3(-axis);  // from A toward B
-  return clipFeatures(PosedConvex(a, pa), PosedConvex(b, pb), n, margin, m);
+  // The face clipped must hold the overlap the test found. A small box's
+  // face can win by the tie-break while the true contact is its corner in
+  // a large box's face (a cloth cell pulled over the cube's edge): its
+  // normal then picks another face of the large box to clip, no point
+  // comes out, and the cell sank 9.9 mm through the cube's side unseen.
+  // Such a pair goes by GJK/EPA and the clipping of its features instead.
+  if (clipFeatures(PosedConvex(a, pa), PosedConvex(b, pb), n, margin, m) > 0) {
+    double least = kInf;
+    for (int i = 0; i < m.pointCount; ++i)
+      least = std::min(least, m.points[i].separation);
+    if (least <= faceSep + kClippedDepthSlack + 0.1 * std::abs(faceSep)) return m.pointCount;
+  }
+  return collideConvex(a, pa, b, pb, margin, m);
 }
 
 int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,

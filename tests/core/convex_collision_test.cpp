@@ -143,6 +143,34 @@ double supportArea(const ContactManifold& m) {
   return area;
 }
 
+TEST(ConvexCollision, ABoxHangingOverALargeBoxsEdgeIsFoundByTheSeparatingAxisPath) {
+  // A 50 mm cloth cell pulled over the edge of the 0.6 m cube (the poses
+  // the core held, cloth32 at 10 sub-steps): it is 9.8 mm into the
+  // cube's side. The separating-axis test took the cell's face by its
+  // tie-break, clipped the wrong face of the cube, found no point, and
+  // the cell went on sinking through the side unseen.
+  const Shape cell = Shape::box(0, Vec3(0.025, 0.025, 0.025));
+  const Shape cube = Shape::box(1, Vec3(0.3, 0.3, 0.3));
+  const ShapePose cellPose{
+      Vec3(-0.30705353155128917, 0.32695431126242824, 0.79770795254230598),
+      (Mat3() << 0.71327047877101979, -0.44590590340670544, -0.5407523919695687,
+       0.68294517083652972, 0.26870605639911904, 0.67925175663040926, -0.15757892544634072,
+       -0.85379446037174733, 0.49618938087558195)
+          .finished()};
+  const ShapePose cubePose = at(Vec3(0.0, 0.0, 0.7));
+  const double overlap = leastProjectedOverlap(cell, cellPose, cube, cubePose);
+  ASSERT_GT(overlap, 0.009);
+  ContactManifold sat, gjk;
+  ASSERT_GT(collideBoxes(cell, cellPose, cube, cubePose, 0.0047, sat), 0);
+  ASSERT_GT(collideConvex(cell, cellPose, cube, cubePose, 0.0047, gjk), 0);
+  // Deep (the sampled directions bound the depth from above), and as
+  // GJK/EPA finds it: across the cube's vertical edge the cell hangs over.
+  EXPECT_LT(deepest(sat), -0.009);
+  EXPECT_GE(deepest(sat), -overlap);
+  EXPECT_NEAR(deepest(sat), deepest(gjk), 1e-9);
+  EXPECT_LT((sat.normal - gjk.normal).norm(), 1e-9) << sat.normal.transpose();
+}
+
 TEST(ConvexCollision, ABoxOnABoxOfItsSizeTurnedAHairRestsOnItsFourCorners) {
   // Turned 1e-7 rad, the upper box's bottom edges cross the lower box's
   // top edges at points anywhere along them, and clipping keeps those
