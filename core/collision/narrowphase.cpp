@@ -10,10 +10,10 @@ namespace blockstep {
 namespace {
 
 // How much shallower than the separation GJK/EPA or the separating-axis
-// test found a clipped manifold's
-// deepest point may be (plus a tenth of the depth), m: clipping measures
-// each point to the reference face's plane, so a face tilted off the
-// normal or a round side's polygon reads a little shallower.
+// test found a clipped manifold's deepest point may be (plus a tenth of
+// the depth), m: clipping measures each point to the reference face's
+// plane, so a face tilted off the normal or a round side's polygon reads
+// a little shallower.
 constexpr double kClippedDepthSlack = 1e-3;
 
 }  // namespace

@@ -254,7 +254,7 @@ Softness Solver::softnessOf(const Softness& soft, double h) const {
 
 void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats) {
   const auto start = Clock::now();
-  nominalSubstep_ = in.h / std::max(1, s.substeps);
+  nominalSubstep_ = in.nominalSubstep > 0.0 ? in.nominalSubstep : in.h / std::max(1, s.substeps);
   peakTurnRate_ = 0.0;
   stepSize_ = in.penetrationStep > 0.0 ? in.penetrationStep : in.h;
   firstFreshContact_ = in.firstFreshContact;

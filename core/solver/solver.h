@@ -44,6 +44,10 @@ struct StepInput {
   // Clear the bodies' force and torque accumulators after the step; a
   // caller stepping in parts keeps them until its last part.
   bool clearForces = true;
+  // The sub-step that step-relative springs (Softness::stepSpring) are
+  // stiff for: the caller's nominal sub-step when it steps in more parts
+  // than its settings' sub-steps; 0: h over the settings' sub-steps.
+  double nominalSubstep = 0.0;
 };
 
 class Solver {
@@ -70,6 +74,10 @@ class Solver {
 
   // The most sub-steps a step with these settings runs (maxTurnPerSubstep).
   static int mostSubsteps(const SolverSettings& s);
+  // The sub-steps of a step of h turning at turnRate rad/s: the nominal
+  // count, or more past maxTurnPerSubstep a sub-step (an island that
+  // turned fast in the last step; the world's collision parts).
+  static int substepsAt(const SolverSettings& s, double h, double turnRate);
 
  private:
   void buildIslands(const StepInput& in, const SolverSettings& s);
@@ -80,9 +88,6 @@ class Solver {
   using Clock = std::chrono::steady_clock;
   void runSubsteps(const StepInput& in, const SolverSettings& s, int substeps,
                    Clock::time_point start, StepStats& stats);
-  // An island's sub-steps: the nominal count, or more while it turned
-  // fast in the last step (maxTurnPerSubstep), at turnRate rad/s.
-  static int substepsAt(const SolverSettings& s, double h, double turnRate);
   // The fastest turn of a body in a constrained island, after a sweep:
   // the whole turn (carried rows) and the turn its joint anchors see
   // (sub-step counts).

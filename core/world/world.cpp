@@ -513,22 +513,22 @@ void World::keepContactsForNextStep() {
   previousContacts_.swap(sortedContacts_);
 }
 
-// Collision every sub-step: the step runs as `substeps` one-sub-step
-// steps, each colliding the shapes where the bodies now are, so a fast
-// body meets what is in front of it at the sub-step's resolution rather
-// than the frame's (cloth cells at 60 Hz reach 50 mm into a cube between
-// two frame collisions). Contacts the caller added (addContact) hold for
+// Collision every sub-step: the step runs in parts of one sub-step each,
+// each colliding the shapes where the bodies now are, so a fast body
+// meets what is in front of it at the sub-step's resolution rather than
+// the frame's (cloth cells at 60 Hz reach 50 mm into a cube between two
+// frame collisions). A part is the settings' sub-step, or shorter (down
+// to maxSubstepFactor times) while a body in contact turns fast
+// (surfaceTurnRate). Contacts the caller added (addContact) hold for
 // every part; forces act on every part; contacts push out of penetration
 // no faster than over the whole step (Solver::penetrationRate). An island
 // the guard catches in one part is put back as it was before the whole
 // step and held still (made static) for the parts that remain.
 void World::stepCollidingEachSubstep(double h) {
-  const int parts = settings_.substeps;
+  const double nominal = h / settings_.substeps;
   SolverSettings part = settings_;
   part.substeps = 1;
-  if (settings_.timeBudget > 0.0) part.timeBudget = settings_.timeBudget / parts;
   callerContacts_.assign(contacts_.begin(), contacts_.end());
-  stats_.substeps = parts;
   stats_.iterations = 0;
   stats_.collideSeconds = stats_.solveSeconds = stats_.stepSeconds = 0.0;
   stats_.residuals.clear();
@@ -537,16 +537,29 @@ void World::stepCollidingEachSubstep(double h) {
   stats_.runawayBodies.clear();
   stats_.runawayJoints.clear();
   heldTypes_.clear();
-  for (int k = 0; k < parts; ++k) {
+  double done = 0.0;
+  double longest = nominal / Solver::substepsAt(part, nominal, surfaceTurnRate(previousContacts_));
+  int k = 0;
+  for (bool last = false; !last; ++k) {
+    // The part: the remaining time in equal parts no longer than the
+    // turn allows (Solver::substepsAt: nominal / factor at the most).
+    const double remaining = h - done;
+    const double pieces = std::max(1.0, std::ceil(remaining / longest - 1e-9));
+    last = pieces <= 1.0;
+    const double hp = last ? remaining : remaining / pieces;
+    if (settings_.timeBudget > 0.0) part.timeBudget = settings_.timeBudget * hp / h;
     if (k > 0) contacts_.assign(callerContacts_.begin(), callerContacts_.end());
-    const double collideSeconds = timedCollide(h / parts);
+    const double collideSeconds = timedCollide(hp);
     prepareContacts();
-    StepInput in{bodies_, joints_, contacts_, worldBody_, gravity_, h / parts};
+    StepInput in{bodies_, joints_, contacts_, worldBody_, gravity_, hp};
     in.penetrationStep = h;
+    in.nominalSubstep = nominal;
     in.firstFreshContact = static_cast<std::int32_t>(callerContacts_.size());
-    in.clearForces = k == parts - 1;
+    in.clearForces = last;
     solver_.step(in, part, partStats_);
+    done += hp;
     keepContactsForNextStep();
+    longest = nominal / Solver::substepsAt(part, nominal, surfaceTurnRate(previousContacts_));
 
     stats_.collideSeconds += collideSeconds;
     stats_.iterations += partStats_.iterations;
@@ -579,11 +592,45 @@ void World::stepCollidingEachSubstep(double h) {
       bodies_[id].type = BodyType::Static;
     }
   }
+  stats_.substeps = k;
   for (const auto& [id, type] : heldTypes_) {
     bodies_[id].type = type;
     bodies_[id].force.setZero();
     bodies_[id].torque.setZero();
   }
+}
+
+// The fastest turn (rad/s) of a body in contact, counting only turns that
+// move its surfaces: not a centred sphere's, nor a centred capsule's or
+// cylinder's about its own axis (a rolling wheel). A part's contacts are
+// found where the bodies are at its start and solved linearized there; a
+// body that turns far before the next collision brings other points of
+// its surface into the bodies it touches. In the 1,000-shape pile a 152 g
+// cylinder pinched between two balls, tumbling at 50-100 rad/s (0.1-0.2
+// rad a sub-step), went 41 mm deep, and an 87 g one at 390 rad/s 14 mm.
+// 0 when the settings do not limit the turn (maxTurnPerSubstep 0).
+double World::surfaceTurnRate(const std::vector<ContactManifold>& contacts) {
+  if (settings_.maxTurnPerSubstep <= 0.0) return 0.0;
+  touching_.assign(bodies_.size(), 0);
+  for (const ContactManifold& m : contacts) {
+    if (m.bodyA != kWorldBody) touching_[m.bodyA] = 1;
+    if (m.bodyB != kWorldBody) touching_[m.bodyB] = 1;
+  }
+  double fastest = 0.0;
+  for (const Shape& shape : shapes_) {
+    if (!shape.alive || shape.body == kWorldBody || !touching_[shape.body]) continue;
+    const Body& b = bodies_[shape.body];
+    if (!b.alive || !b.isDynamic()) continue;
+    Vec3 w = b.angularVelocity;
+    const bool centred = shape.localPosition.isZero();
+    if (centred && shape.kind == Shape::Kind::Sphere) continue;
+    if (centred && (shape.kind == Shape::Kind::Capsule || shape.kind == Shape::Kind::Cylinder)) {
+      const Vec3 axis = (b.orientation * shape.localOrientation) * Vec3::UnitZ();
+      w -= w.dot(axis) * axis;
+    }
+    fastest = std::max(fastest, w.norm());
+  }
+  return fastest;
 }
 
 void World::restoreRunaways() {

@@ -152,6 +152,7 @@ class World {
   void restoreRunaways();
   void keepContactsForNextStep();
   void stepCollidingEachSubstep(double h);
+  double surfaceTurnRate(const std::vector<ContactManifold>& contacts);
 
   bool physicalInertiaOnly_ = true;
   struct Saved {
@@ -194,6 +195,7 @@ class World {
   std::vector<ContactManifold> callerContacts_;
   StepStats partStats_;
   std::vector<std::pair<BodyId, BodyType>> heldTypes_;
+  std::vector<std::uint8_t> touching_;  // per body: in a contact of the last part (surfaceTurnRate)
   double lastStep_ = 0.0;
   int liveBodies_ = 0;
   int liveJoints_ = 0;
