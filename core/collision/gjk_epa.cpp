@@ -109,16 +109,31 @@ bool closestOnTetrahedron(Simplex& s) {
   return outside;
 }
 
-// libccd's view of a core: its support mapping and centre.
+// libccd's view of a core: its support mapping and centre, and the
+// support points asked for so far. libccd's EPA has no bound of its own:
+// it expands its polytope until a support point gains less than the
+// tolerance, and on a pile's cylinder it went on for minutes (each step
+// searching the whole polytope for its nearest face). Past
+// kMostSupportPoints the support is the core's centre, inside the
+// shapes: EPA's next point gains nothing and it ends on its nearest face.
+struct CcdCore {
+  const PosedConvex* convex;
+  int* supportPoints;
+};
+constexpr int kMostSupportPoints = 1000;  // GJK's 200 steps take 400
+
 void ccdSupport(const void* object, const ccd_vec3_t* direction, ccd_vec3_t* out) {
-  const auto* c = static_cast<const PosedConvex*>(object);
-  const Vec3 p = c->coreSupport(Vec3(direction->v[0], direction->v[1], direction->v[2]));
+  const auto* core = static_cast<const CcdCore*>(object);
+  const PosedConvex& c = *core->convex;
+  const Vec3 p = ++*core->supportPoints > kMostSupportPoints
+                     ? c.pose.position
+                     : c.coreSupport(Vec3(direction->v[0], direction->v[1], direction->v[2]));
   ccdVec3Set(out, p.x(), p.y(), p.z());
 }
 
 void ccdCentre(const void* object, ccd_vec3_t* out) {
-  const auto* c = static_cast<const PosedConvex*>(object);
-  ccdVec3Set(out, c->pose.position.x(), c->pose.position.y(), c->pose.position.z());
+  const PosedConvex& c = *static_cast<const CcdCore*>(object)->convex;
+  ccdVec3Set(out, c.pose.position.x(), c.pose.position.y(), c.pose.position.z());
 }
 
 // Calls f(normal, height) for each face of c's core: its outward normal
@@ -255,7 +270,9 @@ CorePenetration corePenetration(const PosedConvex& a, const PosedConvex& b) {
   ccd_real_t depth = 0.0;
   ccd_vec3_t dir, pos;
   CorePenetration out;
-  if (ccdGJKPenetration(&a, &b, &ccd, &depth, &dir, &pos) != 0) return out;
+  int supportPoints = 0;
+  const CcdCore coreA{&a, &supportPoints}, coreB{&b, &supportPoints};
+  if (ccdGJKPenetration(&coreA, &coreB, &ccd, &depth, &dir, &pos) != 0) return out;
   const Vec3 n(dir.v[0], dir.v[1], dir.v[2]);
   const Vec3 p(pos.v[0], pos.v[1], pos.v[2]);
   if (!std::isfinite(depth) || !n.allFinite() || !p.allFinite() || n.squaredNorm() < 0.5) {
@@ -276,6 +293,10 @@ CorePenetration corePenetration(const PosedConvex& a, const PosedConvex& b) {
     return a.coreSupport(d).dot(d) - b.coreSupport(-d).dot(d);
   };
   if (overlapAlong(-out.normal) < overlapAlong(out.normal)) out.normal = -out.normal;
+  // Cut short, EPA's nearest face lies inside the shapes' difference and
+  // its distance understates the depth; the overlap along its normal
+  // bounds the depth from above, as the candidates below do.
+  if (supportPoints > kMostSupportPoints) out.depth = overlapAlong(out.normal);
   // EPA on round cores can also end on a face far from the least overlap
   // (two cylinders 0.9 mm into one another came out 84 mm deep): the
   // overlap along any direction bounds the depth from above, so the line

@@ -477,6 +477,38 @@ TEST(ConvexCollision, AHullRestingOnABoxFaceIsNotTakenForDeep) {
   EXPECT_LT((m.normal - Vec3(-0.3283, -0.9383, 0.1089)).norm(), 1e-3) << m.normal.transpose();
 }
 
+TEST(ConvexCollision, EpaEndsOnACylinderStandingAgainstABoxSide) {
+  // A cylinder standing against a box's side in the 1,000-shape pile, the
+  // two resting 10 um into one another (the poses the core held): libccd's
+  // EPA, which has no bound of its own, refined the round side for
+  // minutes. It is now cut short, and the box's face gives the depth.
+  const Shape box =
+      Shape::box(0, Vec3(0.10162115803318023, 0.08528480672879013, 0.090373515977195867));
+  const Shape cylinder = Shape::cylinder(1, 0.088011004432431095, 2.0 * 0.096984145661911519);
+  const ShapePose boxPose{
+      Vec3(0.36623756808856522, -2.793293685649755, 0.090363508197429554),
+      (Mat3() << -0.98402068134948273, 0.17805420151318541, 4.5778985744025549e-08,
+       0.17805420151318718, 0.98402068134948251, 3.808142511245428e-08, -3.8266911002442051e-08,
+       4.5624050638652607e-08, -0.99999999999999845)
+          .finished()};
+  const ShapePose cylinderPose{
+      Vec3(0.17647237499673146, -2.7769565407933561, 0.096956327328627689),
+      (Mat3() << -0.22325306819484791, -0.9747604975096128, 0.00020009097697240065,
+       -0.97476051792518292, 0.22325306669742251, -3.0073667470574642e-05, -1.535630116201581e-05,
+       -0.00020175482288045047, -0.99999997952958775)
+          .finished()};
+  const CorePenetration deep =
+      corePenetration(PosedConvex(box, boxPose), PosedConvex(cylinder, cylinderPose));
+  ASSERT_TRUE(deep.found);
+  EXPECT_NEAR(deep.depth, 1.0e-5, 1e-6);
+  EXPECT_LE(deep.depth, leastProjectedOverlap(box, boxPose, cylinder, cylinderPose));
+  EXPECT_LT((deep.normal - Vec3(-0.98402068134948273, 0.17805420151318718, 0.0)).norm(), 1e-6);
+  // The side along the face: two points, at that depth.
+  ContactManifold m;
+  ASSERT_EQ(collideConvex(box, boxPose, cylinder, cylinderPose, kMargin, m), 2);
+  EXPECT_NEAR(deepest(m), -deep.depth, 1e-7);
+}
+
 TEST(ConvexCollision, CapsulesNearCylindersAreNotTakenForOverlapping) {
   // Capsules beside cylinders in the 1,000-shape pile (the poses the core
   // held). GJK's support points on the cylinder's round side bunched up
