@@ -16,6 +16,20 @@ namespace {
 // a little shallower.
 constexpr double kClippedDepthSlack = 1e-3;
 
+// Clips the features of A and B touching along n into m and keeps them
+// when their deepest point reaches `separation` (within the slack above);
+// otherwise leaves m empty. Returns the points kept.
+int clipToSeparation(const PosedConvex& A, const PosedConvex& B, const Vec3& n, double separation,
+                     double margin, ContactManifold& m) {
+  if (clipFeatures(A, B, n, margin, m) == 0) return 0;
+  double least = kInf;
+  for (int i = 0; i < m.pointCount; ++i)
+    least = std::min(least, m.points[i].separation);
+  if (least <= separation + kClippedDepthSlack + 0.1 * std::abs(separation)) return m.pointCount;
+  m.pointCount = 0;
+  return 0;
+}
+
 }  // namespace
 
 int collideSpherePlane(const Shape& plane, const Shape& sphere, const ShapePose& ps, double margin,
@@ -184,12 +198,8 @@ int collideBoxes(const Shape& a, const ShapePose& pa, const Shape& b, const Shap
   // normal then picks another face of the large box to clip, no point
   // comes out, and the cell sank 9.9 mm through the cube's side unseen.
   // Such a pair goes by GJK/EPA and the clipping of its features instead.
-  if (clipFeatures(PosedConvex(a, pa), PosedConvex(b, pb), n, margin, m) > 0) {
-    double least = kInf;
-    for (int i = 0; i < m.pointCount; ++i)
-      least = std::min(least, m.points[i].separation);
-    if (least <= faceSep + kClippedDepthSlack + 0.1 * std::abs(faceSep)) return m.pointCount;
-  }
+  if (clipToSeparation(PosedConvex(a, pa), PosedConvex(b, pb), n, faceSep, margin, m) > 0)
+    return m.pointCount;
   return collideConvex(a, pa, b, pb, margin, m);
 }
 
@@ -205,13 +215,7 @@ int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const Sha
   // sank 38 mm into such a hull while its contact said 3 mm apart. Such a
   // manifold is dropped for the single point, at the true separation.
   auto clipped = [&](const Vec3& n, double separation) {
-    if (clipFeatures(A, B, n, margin, m) == 0) return false;
-    double least = kInf;
-    for (int i = 0; i < m.pointCount; ++i)
-      least = std::min(least, m.points[i].separation);
-    if (least <= separation + kClippedDepthSlack + 0.1 * std::abs(separation)) return true;
-    m.pointCount = 0;
-    return false;
+    return clipToSeparation(A, B, n, separation, margin, m) > 0;
   };
   const CoreDistance apart = coreDistance(A, B);
   if (!apart.overlapping) {
