@@ -199,6 +199,10 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_LIGHT_BODY_GROUPS", v, 0, n, 1)) {
     s.lightBodyGroups = n != 0;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_LOAD_RELATIVE_CONTACTS");
+      v && parseInt("BLOCKSTEP_LOAD_RELATIVE_CONTACTS", v, 0, n, 1)) {
+    s.loadRelativeContacts = n != 0;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_CHAIN_BLOCKS");
       v && parseInt("BLOCKSTEP_CHAIN_BLOCKS", v, 0, n, 1)) {
     s.chainBlocks = n != 0;
@@ -563,6 +567,17 @@ void dWorldSetBlockLightBodyGroups(dWorldID w, int on) {
 int dWorldGetBlockLightBodyGroups(dWorldID w) {
   return guarded(__func__, 0, [&] {
     return heldOrSolvers(w, &ode::BridgeSettings::lightBodyGroups, &SolverSettings::lightBodyGroups)
+               ? 1
+               : 0;
+  });
+}
+void dWorldSetBlockLoadRelativeContacts(dWorldID w, int on) {
+  guarded(__func__, [&] { LockedWorld(w).settings().loadRelativeContacts = on != 0; });
+}
+int dWorldGetBlockLoadRelativeContacts(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    return heldOrSolvers(w, &ode::BridgeSettings::loadRelativeContacts,
+                         &SolverSettings::loadRelativeContacts)
                ? 1
                : 0;
   });

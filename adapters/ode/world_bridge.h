@@ -64,6 +64,10 @@ struct BridgeSettings {
   // In larger contact islands, each light body's manifolds as one exact
   // group (SolverSettings::lightBodyGroups; unset: the solver's own).
   std::optional<bool> lightBodyGroups;
+  // Fresh contacts on jointed bodies give no more under their load than
+  // under their own weight (SolverSettings::loadRelativeContacts; unset:
+  // the solver's own).
+  std::optional<bool> loadRelativeContacts;
   // The turn per sub-step above which a step runs more sub-steps
   // (SolverSettings::maxTurnPerSubstep; unset: the solver's own).
   std::optional<double> maxTurnPerSubstep;

@@ -82,6 +82,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.islandRows) dWorldSetBlockIslandBlockRows(w, *o.islandRows);
   if (o.chains) dWorldSetBlockChainBlocks(w, *o.chains ? 1 : 0);
   if (o.lightGroups) dWorldSetBlockLightBodyGroups(w, *o.lightGroups ? 1 : 0);
+  if (o.loadContacts) dWorldSetBlockLoadRelativeContacts(w, *o.loadContacts ? 1 : 0);
   if (o.contactRows) dWorldSetBlockContactIslandRows(w, *o.contactRows);
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
   if (o.refreshTurn) dWorldSetBlockRefreshTurn(w, *o.refreshTurn);
@@ -303,6 +304,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.chains = flag(text, key, value);
   } else if (key == "light_groups") {
     o.lightGroups = flag(text, key, value);
+  } else if (key == "load_contacts") {
+    o.loadContacts = flag(text, key, value);
   } else if (key == "contact_rows") {
     o.contactRows = whole(text, key, value, 0, 4096);
   } else if (key == "max_turn") {
@@ -347,6 +350,9 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
            "blockstep: contact islands as one exact block up to this many points, 0: off"},
           {"light_groups",
            "blockstep: in larger contact islands, light bodies' contacts as exact groups, 0 or 1"},
+          {"load_contacts",
+           "blockstep: fresh contacts on jointed bodies give no more under their load than "
+           "under their own weight, 0 or 1"},
           {"max_turn", "blockstep: more sub-steps past this turn per sub-step, rad, 0: off"},
           {"refresh_turn",
            "blockstep: sub-steps keep their rows until bodies turn this far, rad, 0: always "

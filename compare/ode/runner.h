@@ -43,6 +43,7 @@ struct Overrides {
   std::optional<bool> rowByRow;       // mode=row: one row at a time, not one block per joint
   std::optional<int> islandRows;      // island blocks up to this many joint rows (0: off)
   std::optional<bool> lightGroups;    // light bodies' contacts as exact groups in larger islands
+  std::optional<bool> loadContacts;   // fresh contacts on jointed bodies relative to their load
   std::optional<bool> chains;         // larger islands cut into chains of that many rows
   std::optional<int> contactRows;     // contact islands as one block up to this many points
   std::optional<double> maxTurn;      // rad per sub-step before more sub-steps (0: off)

@@ -146,6 +146,13 @@ struct SolverSettings {
   // ball's weight a sweep and is pushed into the ground. Off: such an
   // island keeps one block per manifold.
   bool lightBodyGroups = false;
+  // A contact found at this sub-step's start (collision every sub-step)
+  // on a body a joint holds gives, under the load it carries, no more
+  // than it would under its own body's weight (Solver::loadRelativeGamma
+  // says why). Off: its spring stays relative to its own effective mass,
+  // and a light body carrying a heavy jointed structure is pushed in
+  // (the soft cube's corner box, 6.2 mm).
+  bool loadRelativeContacts = false;
   // Threads that sweep independent islands at once (TBB): the result is
   // bitwise the same whatever the count, as islands share no movable
   // body. 1: the calling thread only; 0: one per core (also the most).
@@ -204,6 +211,7 @@ struct SolverSettings {
     s.islandBlockRows = kIslandBlockRows;
     s.contactIslandRows = kContactIslandRows;
     s.lightBodyGroups = true;
+    s.loadRelativeContacts = true;
     s.substeps = substeps;
     s.iterations = 1;
     s.relaxIterations = 1;

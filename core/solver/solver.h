@@ -132,6 +132,7 @@ class Solver {
   double blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
                           bool inIslandBlock, SoftnessCache& cache) const;
   void selectContactIslands(const StepInput& in, const SolverSettings& s);
+  bool carriesLoadThroughJoint(const SolverSettings& s, const ConstraintBlock& blk) const;
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk, bool inIslandBlock,
                    bool inGroup, bool islandSolvesAll);
   // J v with the velocities the (sub-)step started from.
@@ -293,7 +294,10 @@ class Solver {
   std::int32_t dummy_ = 0;
   double stepSize_ = 0.0;               // the whole step being taken (sub-steps divide it)
   std::int32_t firstFreshContact_ = 0;  // StepInput::firstFreshContact (penetrationRate)
-  double sinceStepStart_ = 0.0;         // when the current sub-step starts, s into the step
+  double weightPerMass_ = 0.0;          // |gravity| (loadRelativeGamma)
+  // Per solver body, this prepare: whether some joint block holds it.
+  std::vector<std::uint8_t> heldByJoint_;
+  double sinceStepStart_ = 0.0;  // when the current sub-step starts, s into the step
   // Carried rows (SolverSettings::maxTurnPerRefresh): per row, its bias
   // rate and its error when prepared; per body, where it was then.
   std::vector<double> carriedBiasRate_, preparedC_;

@@ -452,7 +452,9 @@ TEST(CompareRuns, BlockstepsOwnCollisionEverySubstepLandsTheRagdollShallow) {
 // (frame 74) reached 11.4 mm and cloth32 pulled over the cube's edge
 // (frames 22-35) 18.1 mm; now 5.8 mm and 3.5 mm (SCENES.md asks 5: the
 // cube's corner box sinks before its one sweep a sub-step stops the
-// lattice above it; four sweeps hold it to 4 mm).
+// lattice above it; four sweeps hold it to 4 mm). The contacts' springs
+// stay relative to their own mass here (load_contacts=0): the test below
+// holds the corner box up by its load.
 TEST(CompareRuns, FreshDeepContactsPushOutAtTheSubstepsRate) {
   struct Case {
     const char* scene;
@@ -463,12 +465,48 @@ TEST(CompareRuns, FreshDeepContactsPushOutAtTheSubstepsRate) {
     RunOptions o;
     o.frames = c.frames;
     auto s = makeScene(c.scene);
-    const RunResult r = run(*s, parseStepper("blockstep:substep:10,collision=substep"), o);
+    const RunResult r =
+        run(*s, parseStepper("blockstep:substep:10,collision=substep,load_contacts=0"), o);
     std::printf("  %s, %d frames colliding every sub-step: deepest contact %.1f mm\n", c.scene,
                 c.frames, r.maxPenetration * 1e3);
     EXPECT_LT(r.maxPenetration, c.within) << c.scene;
     EXPECT_GT(r.maxPenetration, 0.001) << c.scene << " lands (the test is not vacuous)";
     EXPECT_EQ(r.runawayFrames, 0) << c.scene;
+  }
+}
+
+// A contact on a body a joint holds gives under its load no more than
+// under its own weight (SolverSettings::loadRelativeContacts). The soft
+// cube lands on one corner box, 0.1 kg stopping the 12.5 kg lattice: with
+// the contact's spring relative to the box's own mass it went 5.4 mm deep
+// at this frame step (4.3-6.2 mm over five), relative to its load 0.02 mm.
+// Cloth32's cells rest on the cube 2.4 mm deep, and 0.1 mm.
+TEST(CompareRuns, AContactOnAJointedBodyGivesNoMoreUnderItsLoadThanUnderItsWeight) {
+  struct Case {
+    const char* scene;
+    int frames;
+    bool lastSecond;  // the resting depth, else the deepest
+    double within, without;
+  };
+  for (const Case& c :
+       {Case{"softcube", 100, false, 0.001, 0.003}, Case{"cloth", 150, true, 0.0005, 0.0015}}) {
+    RunOptions o;
+    o.frames = c.frames;
+    double depth[2];
+    for (int on = 0; on < 2; ++on) {
+      auto s = makeScene(c.scene);
+      const std::string stepper = std::string("blockstep:substep:10,collision=substep,") +
+                                  (on ? "load_contacts=1" : "load_contacts=0");
+      const RunResult r = run(*s, parseStepper(stepper), o);
+      EXPECT_EQ(r.runawayFrames, 0) << c.scene;
+      depth[on] = c.lastSecond ? r.lastSecondPenetration : r.maxPenetration;
+    }
+    std::printf(
+        "  %s, %d frames colliding every sub-step: %s contact %.2f mm relative to the "
+        "load, %.2f mm to the body's own mass\n",
+        c.scene, c.frames, c.lastSecond ? "resting" : "deepest", depth[1] * 1e3, depth[0] * 1e3);
+    EXPECT_LT(depth[1], c.within) << c.scene;
+    EXPECT_GT(depth[0], c.without) << c.scene << ": relative to the body's own mass it sinks";
   }
 }
 

@@ -217,6 +217,22 @@ TEST(OdeContacts, LightPlankInALargerIslandRestsAsDirectSolver) {
   EXPECT_GT(manifolds, 0.01);  // what the group is for
 }
 
+// Load-relative contacts (dWorldSetBlockLoadRelativeContacts) follow the
+// solver until set: on sub-stepped, off in the paper preset, then as set
+// whichever solver follows. CompareRuns measures what they do.
+TEST(OdeContacts, LoadRelativeContactsFollowTheSolverUntilSet) {
+  ContactScene c;
+  dWorldSetBlockSubsteppedSolver(c.scene.world, 10);
+  EXPECT_EQ(dWorldGetBlockLoadRelativeContacts(c.scene.world), 1);
+  dWorldSetBlockPaperSolver(c.scene.world, 50);
+  EXPECT_EQ(dWorldGetBlockLoadRelativeContacts(c.scene.world), 0);
+  dWorldSetBlockLoadRelativeContacts(c.scene.world, 1);
+  EXPECT_EQ(dWorldGetBlockLoadRelativeContacts(c.scene.world), 1);
+  dWorldSetBlockSubsteppedSolver(c.scene.world, 10);
+  dWorldSetBlockLoadRelativeContacts(c.scene.world, 0);
+  EXPECT_EQ(dWorldGetBlockLoadRelativeContacts(c.scene.world), 0);
+}
+
 // Runs the contact scene built by `build` with dWorldStep and with
 // blockstep, and returns probe() of both after `steps` steps. Blockstep
 // runs the paper's solver here (one step, ODE's own ERP and CFM rows,

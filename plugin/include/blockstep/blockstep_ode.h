@@ -85,6 +85,16 @@ ODE_API int dWorldGetBlockContactIslandRows(dWorldID w);
  * BLOCKSTEP_LIGHT_BODY_GROUPS. */
 ODE_API void dWorldSetBlockLightBodyGroups(dWorldID w, int on);
 ODE_API int dWorldGetBlockLightBodyGroups(dWorldID w);
+/* A contact found at the sub-step's start (blockstep's own collision
+ * every sub-step, dWorldSetBlockCollision) on a body a joint holds gives
+ * under the load it carries no more than under its own weight (1), or
+ * its spring stays relative to its own mass (0): a light body carrying a
+ * heavy jointed structure (a lattice's corner landing, a cloth over a
+ * cube) is then pushed in. Holds under every solver; the default is the
+ * solver's own (on sub-stepped, off for dWorldStep and the paper preset).
+ * BLOCKSTEP_LOAD_RELATIVE_CONTACTS. */
+ODE_API void dWorldSetBlockLoadRelativeContacts(dWorldID w, int on);
+ODE_API int dWorldGetBlockLoadRelativeContacts(dWorldID w);
 /* Cut an island with more joint rows than that (a cloth, a lattice) into
  * chains of joints, each of at most that many rows and solved as one
  * exact block inside the sweeps (1), or keep one block per joint (0, the
