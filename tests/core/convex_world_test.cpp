@@ -430,5 +430,55 @@ TEST(ConvexWorld, CollidingEverySubstepTakesShorterPartsWhileATouchingBodyTumble
   EXPECT_EQ(ball.mostParts, 10);
   EXPECT_LT(ball.deepest, 0.001);
 }
+
+// A contact on a body a joint holds gives under the load it carries no
+// more than under its own weight (SolverSettings::loadRelativeContacts).
+// A 0.1 kg foot glued under a 10 kg block rests on the ground; its
+// contacts' spring (the drop-in's, omega h = 0.4 a sub-step) relative to
+// the foot's own mass gives gamma P under the block's load, and rests
+// where the push-out rate beta / h (Solver::penetrationRate) meets it:
+// a depth gamma P h / beta proportional to the load. Relative to the load
+// it carries, the depth is what the foot's own weight alone would give:
+// 0.1 / 10.1 of it. Returns the deepest contact of the last half second.
+double footUnderABlock(bool loadRelative) {
+  World world;
+  SolverSettings settings = SolverSettings::subStepped(10);
+  settings.loadRelativeContacts = loadRelative;
+  world.setSettings(settings);
+  world.collisionSettings().everySubstep = true;
+  world.collisionSettings().surface.softness = Softness::stepSpring(0.4, 2.0);
+  world.collisionSettings().surface.slop = 0.0;
+  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  const Vec3 footHalf(0.05, 0.05, 0.05), blockHalf(0.1, 0.1, 0.1);
+  const BodyId foot =
+      world.createBody(test::boxBody(Vec3(0, 0, footHalf.z()), 0.1, 2.0 * footHalf));
+  world.addShape(Shape::box(foot, footHalf));
+  const BodyId block = world.createBody(
+      test::boxBody(Vec3(0, 0, 2.0 * footHalf.z() + blockHalf.z()), 10.0, 2.0 * blockHalf));
+  FixedJointDesc glue;
+  glue.common.bodyA = foot;
+  glue.common.bodyB = block;
+  world.createJoint(glue);
+  double deepest = 0.0;
+  for (int frame = 0; frame < 60; ++frame) {
+    world.step(1.0 / 60.0);
+    if (frame < 30) continue;
+    for (const ContactManifold& m : world.contacts())
+      for (int k = 0; k < m.pointCount; ++k)
+        deepest = std::max(deepest, -m.points[k].separation);
+  }
+  return deepest;
+}
+
+TEST(ConvexWorld, AFootUnderAHeavyBlockGivesNoMoreUnderItsLoadThanUnderItsWeight) {
+  const double ownMass = footUnderABlock(false);
+  const double load = footUnderABlock(true);
+  std::printf(
+      "  0.1 kg foot under 10 kg: rests %.3f mm deep (spring relative to its own mass), "
+      "%.4f mm (to its load)\n",
+      ownMass * 1e3, load * 1e3);
+  EXPECT_GT(ownMass, 1e-3);
+  EXPECT_LT(load, 2.0 * ownMass * 0.1 / 10.1) << "about the foot's own weight's give";
+}
 }  // namespace
 }  // namespace blockstep
