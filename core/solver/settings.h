@@ -148,7 +148,7 @@ struct SolverSettings {
   bool lightBodyGroups = false;
   // A contact found at this sub-step's start (collision every sub-step)
   // on a body a joint holds gives, under the load it carries, no more
-  // than it would under its own body's weight (Solver::loadRelativeGamma
+  // than it would under its own body's weight (Solver::carriesLoadThroughJoint
   // says why). Off: its spring stays relative to its own effective mass,
   // and a light body carrying a heavy jointed structure is pushed in
   // (the soft cube's corner box, 6.2 mm).
