@@ -703,7 +703,10 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
   // Grows only while warming up.
   if (blockMatrices_.size() < matrixSize) blockMatrices_.resize(matrixSize);
   matrixCount_ = matrixSize;
-  if (s.loadRelativeContacts) {
+  // Only where carriesLoadThroughJoint can ask: fresh contacts (none under
+  // the drop-in's own collision) and gravity.
+  if (s.loadRelativeContacts && weightPerMass_ > 0.0 &&
+      static_cast<std::int32_t>(in.contacts.size()) > firstFreshContact_) {
     heldByJoint_.assign(bodies_.size(), 0);  // grows only while warming up
     for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
       const ConstraintBlock& blk = blocks_[bi];
