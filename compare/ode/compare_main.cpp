@@ -28,7 +28,8 @@ void writeCsv(const std::filesystem::path& path, const RunResult& r) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write " + path.string());
   out << "frame,collide_ms,solve_ms,max_separation_m,rms_separation_m,max_angle_rad,"
-         "penetration_m,contacts,kinetic_energy_j,potential_energy_j,handed_to_ode\n";
+         "penetration_m,contacts,kinetic_energy_j,potential_energy_j,handed_to_ode,"
+         "held_penetration_m\n";
   for (std::size_t f = 0; f < r.frames.size(); ++f) {
     const FrameRecord& rec = r.frames[f];
     const double rms =
@@ -36,7 +37,7 @@ void writeCsv(const std::filesystem::path& path, const RunResult& r) {
     out << f << ',' << rec.collideSeconds * 1e3 << ',' << rec.solveSeconds * 1e3 << ','
         << rec.joints.separation << ',' << rms << ',' << rec.joints.angle << ',' << rec.penetration
         << ',' << rec.contacts << ',' << rec.kineticEnergy << ',' << rec.potentialEnergy << ','
-        << rec.handedToOde << '\n';
+        << rec.handedToOde << ',' << rec.heldPenetration << '\n';
   }
 }
 
@@ -53,6 +54,7 @@ nlohmann::json summary(const RunResult& r, double quickSolveMs) {
   j["rms_separation_m"] = r.rmsSeparation;
   j["max_angle_rad"] = r.maxAngle;
   j["max_penetration_m"] = r.maxPenetration;
+  j["max_held_penetration_m"] = r.maxHeldPenetration;
   j["last_second_penetration_m"] = r.lastSecondPenetration;
   j["drift_m"] = r.drift;
   j["max_energy_gain_j"] = r.maxEnergyGain;
@@ -153,6 +155,7 @@ nlohmann::json resultToJson(const RunResult& r) {
           {"rms_separation", r.rmsSeparation},
           {"max_angle", r.maxAngle},
           {"max_penetration", r.maxPenetration},
+          {"max_held_penetration", r.maxHeldPenetration},
           {"last_second_penetration", r.lastSecondPenetration},
           {"drift", r.drift},
           {"start_energy", r.startEnergy},
@@ -177,6 +180,7 @@ RunResult resultFromJson(const nlohmann::json& j) {
   r.rmsSeparation = j.at("rms_separation");
   r.maxAngle = j.at("max_angle");
   r.maxPenetration = j.at("max_penetration");
+  r.maxHeldPenetration = j.value("max_held_penetration", 0.0);  // files from before it
   r.lastSecondPenetration = j.at("last_second_penetration");
   r.drift = j.at("drift");
   r.startEnergy = j.at("start_energy");
@@ -537,9 +541,9 @@ int main(int argc, char** argv) {
   int labelWidth = 22;
   for (const std::string& label : steppers)
     labelWidth = std::max(labelWidth, static_cast<int>(label.size()));
-  std::printf("%-12s %-*s %7s %10s %10s %9s %12s %12s %10s %10s %10s %10s  %s\n", "scene",
+  std::printf("%-12s %-*s %7s %10s %10s %9s %12s %12s %10s %10s %10s %10s %10s  %s\n", "scene",
               labelWidth, "stepper", "frames", "solve ms", "x qs20", "coll ms", "max sep mm",
-              "rms sep mm", "pen mm", "drift mm", "E gain J", "E rise J", "note");
+              "rms sep mm", "pen mm", "held mm", "drift mm", "E gain J", "E rise J", "note");
   // A progress line on a terminal for runs longer than a second (one run
   // at a time only).
   const bool terminal = jobs == 1 && isatty(fileno(stderr)) != 0;
@@ -592,10 +596,12 @@ int main(int argc, char** argv) {
       const RunResult& r = sceneResults[k];
       const double ratio = quickSolveMs > 0.0 ? r.medianSolveMs / quickSolveMs : 0.0;
       std::printf(
-          "%-12s %-*s %7d %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f %10.3g %10.3g  %s\n",
+          "%-12s %-*s %7d %10.4f %10.2f %9.4f %12.3f %12.3f %10.3f %10.3f %10.3f %10.3g %10.3g  "
+          "%s\n",
           r.scene.c_str(), labelWidth, r.stepper.c_str(), r.framesRun, r.medianSolveMs, ratio,
           r.medianCollideMs, r.maxSeparation * 1e3, r.rmsSeparation * 1e3, r.maxPenetration * 1e3,
-          r.drift * 1e3, r.maxEnergyGain, r.maxEnergyRise, note(r).c_str());
+          r.maxHeldPenetration * 1e3, r.drift * 1e3, r.maxEnergyGain, r.maxEnergyRise,
+          note(r).c_str());
       nlohmann::json j = summary(r, quickSolveMs);
       const Stepper& st = parsed[k];
       j["kind"] = st.kind == Stepper::Kind::Quick       ? "quickstep"

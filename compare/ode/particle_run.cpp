@@ -178,6 +178,9 @@ RunResult runParticles(Scene& scene, const Stepper& stepper, const RunOptions& o
   for (int f = 0; f < options.frames; ++f) {
     FrameRecord rec;
     rec.penetration = ps.deepestContact(&rec.contacts);
+    // Found and projected in every iteration: each contact is one the
+    // step acts on.
+    rec.heldPenetration = rec.penetration;
     // Contacts are found and projected inside the iterations: the whole
     // step counts as solve time (none as collision), the rigid steppers'
     // collision not being counted in theirs.

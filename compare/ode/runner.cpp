@@ -438,6 +438,7 @@ void summarizeFrames(RunResult& r, double dt) {
     r.maxSeparation = std::max(r.maxSeparation, rec.joints.separation);
     r.maxAngle = std::max(r.maxAngle, rec.joints.angle);
     r.maxPenetration = std::max(r.maxPenetration, rec.penetration);
+    r.maxHeldPenetration = std::max(r.maxHeldPenetration, rec.heldPenetration);
     const double energy = rec.kineticEnergy + rec.potentialEnergy;
     r.maxEnergyGain = std::max(r.maxEnergyGain, energy - r.startEnergy);
     lowestEnergy = std::min(lowestEnergy, energy);
@@ -524,6 +525,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
       const auto collided = Clock::now();
       // The measure, out of both times.
       rec.penetration = std::max(rec.penetration, scene.deepestContact());
+      rec.heldPenetration = std::max(rec.heldPenetration, scene.deepestHeldContact());
       const auto t1 = Clock::now();
       const double measureSeconds = seconds(collided, t1);
       switch (stepper.kind) {

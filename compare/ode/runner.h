@@ -88,6 +88,8 @@ struct FrameRecord {
   double solveSeconds = 0.0;
   JointError joints;
   double penetration = 0.0;  // deepest contact, m
+  // Deepest contact whose pair touched at the collision before (Scene::deepestHeldContact), m.
+  double heldPenetration = 0.0;
   int contacts = 0;
   double kineticEnergy = 0.0;
   double potentialEnergy = 0.0;  // of gravity, from the world's origin
@@ -112,6 +114,7 @@ struct RunResult {
   double medianSolveMs = 0.0, medianCollideMs = 0.0;
   double maxSeparation = 0.0, rmsSeparation = 0.0, maxAngle = 0.0;
   double maxPenetration = 0.0;
+  double maxHeldPenetration = 0.0;     // the deepest contact the stepper had a step to act on
   double lastSecondPenetration = 0.0;  // mean deepest contact over the last second
   double drift = 0.0;                  // the probe body's distance from its start, m
   // Mechanical energy (kinetic plus gravity's potential) before the first

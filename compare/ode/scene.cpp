@@ -209,17 +209,14 @@ void Scene::nearCallback(void* data, dGeomID a, dGeomID b) {
     return c == dCylinderClass || c == dConvexClass;
   };
   const bool plane = dGeomGetClass(a) == dPlaneClass || dGeomGetClass(b) == dPlaneClass;
-  if (!plane && (round(a) || round(b))) {
-    self->roundPairs_.push_back({a, b, depth});
-  } else {
-    self->deepest_ = std::max(self->deepest_, depth);
-  }
+  if (pairKey(b) < pairKey(a)) std::swap(a, b);
+  self->touching_.push_back({a, b, depth, !plane && (round(a) || round(b))});
 }
 
 double Scene::collide() {
   contactCount_ = 0;
-  deepest_ = deepestOde_ = 0.0;
-  roundPairs_.clear();
+  deepestOde_ = 0.0;
+  touching_.clear();
   dSpaceCollide(space_, this, &nearCallback);
   return deepestOde_;
 }
@@ -228,13 +225,23 @@ double Scene::deepestContact() {
   // MPR's depth is never less than the least one (it is the shapes'
   // overlap along its direction), so only pairs ODE finds deeper than the
   // deepest so far can raise it: the deepest first.
-  std::sort(roundPairs_.begin(), roundPairs_.end(),
-            [](const RoundPair& x, const RoundPair& y) { return x.odeDepth > y.odeDepth; });
-  double deepest = deepest_;
-  for (const RoundPair& pair : roundPairs_) {
-    if (pair.odeDepth <= deepest) break;
-    deepest = std::max(deepest, leastDepth(pair));
+  std::sort(touching_.begin(), touching_.end(),
+            [](const TouchingPair& x, const TouchingPair& y) { return x.odeDepth > y.odeDepth; });
+  double deepest = 0.0, held = 0.0;
+  for (const TouchingPair& pair : touching_) {
+    const bool wasTouching =
+        std::binary_search(lastTouching_.begin(), lastTouching_.end(), pairKey(pair));
+    if (pair.odeDepth <= deepest && (!wasTouching || pair.odeDepth <= held)) continue;
+    const double depth = pair.round ? leastDepth(pair) : pair.odeDepth;
+    deepest = std::max(deepest, depth);
+    if (wasTouching) held = std::max(held, depth);
   }
+  deepestHeld_ = held;
+  nowTouching_.clear();
+  for (const TouchingPair& pair : touching_)
+    nowTouching_.push_back(pairKey(pair));
+  std::sort(nowTouching_.begin(), nowTouching_.end());
+  std::swap(lastTouching_, nowTouching_);
   return deepest;
 }
 
@@ -274,7 +281,7 @@ bool Scene::coreShape(dGeomID g, Shape& out) const {
   }
 }
 
-double Scene::leastDepth(const RoundPair& pair) const {
+double Scene::leastDepth(const TouchingPair& pair) const {
   Shape sa, sb;
   if (!coreShape(pair.a, sa) || !coreShape(pair.b, sb)) return pair.odeDepth;
   auto pose = [](dGeomID g) {

@@ -9,8 +9,10 @@
 
 #include <ode/ode.h>
 
+#include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/collision/shapes.h"
@@ -80,6 +82,13 @@ class Scene {
   // cylinder 6.7 mm deep came out 9.4 mm. Kept apart from collide() so
   // the measure costs no stepper collision time.
   double deepestContact();
+  // The deepest of those contacts (measured the same way) whose geom pair
+  // also touched at the collide() before: contacts the stepper has had a
+  // step to act on. The deepest contact over a run mostly says how fast
+  // a body met the ground between two collisions (found at most its speed
+  // times the step deep, whatever the stepper does); this says how far
+  // the stepper let it sink on. Set by deepestContact().
+  double deepestHeldContact() const { return deepestHeld_; }
   void clearContacts() { dJointGroupEmpty(contacts_); }
   int contactCount() const { return contactCount_; }
   JointError jointError() const;
@@ -135,25 +144,34 @@ class Scene {
     std::vector<unsigned> polygons;
     std::shared_ptr<const ConvexHull> hull;
   };
-  // A geom pair of the last collide() whose depth deepestContact()
-  // measures again, with ODE's depth.
-  struct RoundPair {
-    dGeomID a = nullptr, b = nullptr;
+  // A geom pair that touched at the last collide(), with ODE's depth;
+  // round pairs (a cylinder or a convex hull, not on a plane) have their
+  // depth measured again by deepestContact().
+  struct TouchingPair {
+    dGeomID a = nullptr, b = nullptr;  // pairKey(a) < pairKey(b)
     double odeDepth = 0.0;
+    bool round = false;
   };
-  // The least separating distance of a RoundPair (libccd GJK + EPA), or
+  // The least separating distance of a round pair (libccd GJK + EPA), or
   // its ODE depth where the geoms are not shapes the core knows.
-  double leastDepth(const RoundPair& pair) const;
+  double leastDepth(const TouchingPair& pair) const;
   bool coreShape(dGeomID g, Shape& out) const;
-  std::vector<RoundPair> roundPairs_;
+  std::vector<TouchingPair> touching_;
+  // A geom's and a pair's identity, as numbers (ordered).
+  static std::uintptr_t pairKey(dGeomID g) { return reinterpret_cast<std::uintptr_t>(g); }
+  static std::pair<std::uintptr_t, std::uintptr_t> pairKey(const TouchingPair& p) {
+    return {pairKey(p.a), pairKey(p.b)};
+  }
+  // The pairs touching at the collide() before the last, ordered.
+  std::vector<std::pair<std::uintptr_t, std::uintptr_t>> lastTouching_, nowTouching_;
   std::vector<std::unique_ptr<ConvexData>> convexData_;
   dBodyID probe_ = nullptr;
   DrawHints draw_;
   dSurfaceParameters surface_{};
   dVector3 probeStart_{};
   int contactCount_ = 0;
-  double deepest_ = 0.0;     // over the pairs ODE measures exactly
-  double deepestOde_ = 0.0;  // over every pair, as ODE's colliders give it
+  double deepestOde_ = 0.0;   // over every pair, as ODE's colliders give it
+  double deepestHeld_ = 0.0;  // deepestHeldContact()
 };
 
 // The scenes of SCENES.md by name (size: cloth's N; 0 for the default).

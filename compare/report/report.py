@@ -91,19 +91,22 @@ def table_html(scene, runs):
         ratio = r["solve_ratio_to_quickstep20"]
         rows.append(
             "<tr class='%s'><td>%s</td><td>%d</td><td>%.4f</td><td>%s</td><td>%.4f</td>"
-            "<td>%s</td><td>%s</td><td>%.2f</td><td>%s</td><td>%s</td><td>%s</td><td>%.3g</td>"
+            "<td>%s</td><td>%s</td><td>%.2f</td><td>%s</td><td>%s</td><td>%s</td><td>%s</td>"
+            "<td>%.3g</td>"
             "<td>%.3g</td><td>%s</td></tr>"
             % (cls, html.escape(r["stepper"]), r["frames"], r["median_solve_ms"],
                "%.2f" % ratio if ratio > 0 else "", r["median_collide_ms"],
                mm(r["max_separation_m"]), mm(r["rms_separation_m"]),
                math.degrees(r["max_angle_rad"]), mm(r["max_penetration_m"]),
-               mm(r["last_second_penetration_m"]), mm(r["drift_m"]),
+               mm(r.get("max_held_penetration_m", 0.0)), mm(r["last_second_penetration_m"]), mm(r["drift_m"]),
                r.get("max_energy_gain_j", 0.0), r.get("max_energy_rise_j", 0.0),
                html.escape(run_note(r))))
     return (
         "<table class='runs' data-scene='%s'><thead><tr><th>stepper</th><th>frames</th>"
         "<th>solve ms</th><th>&times; qs20</th><th>collide ms</th><th>max sep mm</th>"
-        "<th>rms sep mm</th><th>max angle &deg;</th><th>max pen mm</th><th>settled pen mm</th>"
+        "<th>rms sep mm</th><th>max angle &deg;</th><th>max pen mm</th>"
+        "<th title='the deepest contact whose pair touched at the collision before: one the "
+        "stepper had a step to act on'>held pen mm</th><th>settled pen mm</th>"
         "<th>drift mm</th><th title='the most energy over the start'>E gain J</th>"
         "<th title='the most energy gained since the lowest so far'>E rise J</th>"
         "<th>note</th></tr></thead><tbody>%s</tbody></table>"
@@ -248,7 +251,8 @@ def write_report(out_dir):
              "</title><style>%s</style></head><body>" % STYLE,
              "<h1>blockstep against ODE</h1><p>Written %s from %s (blockstep-compare). Each "
              "row is one run of a scene by one stepper, measured the same way: joint separation "
-             "from the joint geometry, the deepest contact, the top box's drift, and the median "
+             "from the joint geometry, the deepest contact (and the deepest held: found at the "
+             "collision before too), the top box's drift, and the median "
              "solve time per frame (collision apart).</p>"
              % (time.strftime("%Y-%m-%d %H:%M"), html.escape(os.path.abspath(out_dir)))]
     parts.append("<h2>The paper's figures beside ours</h2>" + paper_html(scenes))

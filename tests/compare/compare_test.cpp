@@ -131,6 +131,54 @@ TEST(CompareMetrics, SeparationIsTheDistanceOfTheAnchors) {
 // only bound from above (in the 1,000-shape pile a capsule pressing a
 // small cylinder 6.7 mm deep came out 9.4 mm); other pairs keep ODE's
 // depth.
+// A contact counts as held (one the stepper had a step to act on) only
+// when its geom pair touched at the collision before.
+TEST(CompareMetrics, HeldDepthCountsOnlyPairsTouchingAtTheCollisionBefore) {
+  dMass m;
+  dMassSetBoxTotal(&m, 1.0, 0.5, 0.5, 0.5);
+  Scene s;
+  dCreatePlane(s.space(), 0, 0, 1, 0);
+  dBodyID box = s.addBody(m, 0, 0, 0.25 - 0.02);  // 20 mm into the ground
+  s.addGeom(dCreateBox(s.space(), 0.5, 0.5, 0.5), box);
+  // A cylinder to lie across the box: a round pair.
+  dMass light;
+  dMassSetCylinderTotal(&light, 0.1, 3, 0.05, 0.2);
+  dBodyID roll = s.addBody(light, 3, 0, 0.5);  // in the air, for now
+  dQuaternion lying;
+  dQFromAxisAndAngle(lying, 1, 0, 0, M_PI / 2);
+  dBodySetQuaternion(roll, lying);
+  s.addGeom(dCreateCylinder(s.space(), 0.05, 0.2), roll);
+  auto measure = [&](double& deepest, double& held) {
+    s.collide();
+    deepest = s.deepestContact();
+    held = s.deepestHeldContact();
+    s.clearContacts();
+  };
+  double deepest = 0.0, held = 0.0;
+  measure(deepest, held);  // found now: none held
+  EXPECT_NEAR(deepest, 0.02, 1e-9);
+  EXPECT_EQ(held, 0.0);
+  measure(deepest, held);  // found again
+  EXPECT_NEAR(held, 0.02, 1e-9);
+  // The cylinder comes down onto the box, deeper than the box in the
+  // ground: found now, so the held depth stays the box's.
+  dBodySetPosition(roll, 0.1, 0, 0.5 - 0.02 + 0.05 - 0.03);
+  measure(deepest, held);
+  EXPECT_NEAR(deepest, 0.03, 1e-6);
+  EXPECT_NEAR(held, 0.02, 1e-9);
+  measure(deepest, held);  // held now, measured as the least depth
+  EXPECT_NEAR(held, 0.03, 1e-6);
+  // The box leaves the ground and comes back: found anew.
+  dBodySetPosition(box, 0, 0, 1.0);
+  dBodySetPosition(roll, 3, 0, 0.5);
+  measure(deepest, held);
+  EXPECT_EQ(deepest, 0.0);
+  dBodySetPosition(box, 0, 0, 0.25 - 0.01);
+  measure(deepest, held);
+  EXPECT_NEAR(deepest, 0.01, 1e-9);
+  EXPECT_EQ(held, 0.0);
+}
+
 TEST(CompareMetrics, DepthOfRoundPairsIsTheLeastThatSeparatesThem) {
   dMass m;
   dMassSetSphereTotal(&m, 1.0, 0.1);
