@@ -214,6 +214,12 @@ void Scene::nearCallback(void* data, dGeomID a, dGeomID b) {
 }
 
 double Scene::collide() {
+  // The pairs the last collide() found become those of the one before
+  // (ordered here should deepestContact() not have been asked: the
+  // convergence study collides without measuring).
+  keepTouching();
+  std::swap(touchingBefore_, touchingLast_);
+  touchingKept_ = false;
   contactCount_ = 0;
   deepestOde_ = 0.0;
   touching_.clear();
@@ -230,19 +236,24 @@ double Scene::deepestContact() {
   double deepest = 0.0, held = 0.0;
   for (const TouchingPair& pair : touching_) {
     const bool wasTouching =
-        std::binary_search(lastTouching_.begin(), lastTouching_.end(), pairKey(pair));
+        std::binary_search(touchingBefore_.begin(), touchingBefore_.end(), pairKey(pair));
     if (pair.odeDepth <= deepest && (!wasTouching || pair.odeDepth <= held)) continue;
     const double depth = pair.round ? leastDepth(pair) : pair.odeDepth;
     deepest = std::max(deepest, depth);
     if (wasTouching) held = std::max(held, depth);
   }
   deepestHeld_ = held;
-  nowTouching_.clear();
-  for (const TouchingPair& pair : touching_)
-    nowTouching_.push_back(pairKey(pair));
-  std::sort(nowTouching_.begin(), nowTouching_.end());
-  std::swap(lastTouching_, nowTouching_);
+  keepTouching();
   return deepest;
+}
+
+void Scene::keepTouching() {
+  if (touchingKept_) return;
+  touchingKept_ = true;
+  touchingLast_.clear();
+  for (const TouchingPair& pair : touching_)
+    touchingLast_.push_back(pairKey(pair));
+  std::sort(touchingLast_.begin(), touchingLast_.end());
 }
 
 bool Scene::coreShape(dGeomID g, Shape& out) const {

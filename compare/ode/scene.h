@@ -162,8 +162,11 @@ class Scene {
   static std::pair<std::uintptr_t, std::uintptr_t> pairKey(const TouchingPair& p) {
     return {pairKey(p.a), pairKey(p.b)};
   }
-  // The pairs touching at the collide() before the last, ordered.
-  std::vector<std::pair<std::uintptr_t, std::uintptr_t>> lastTouching_, nowTouching_;
+  // The pairs touching at the last collide() and at the one before it,
+  // ordered. keepTouching() orders the last one's (once per collide()).
+  std::vector<std::pair<std::uintptr_t, std::uintptr_t>> touchingLast_, touchingBefore_;
+  bool touchingKept_ = true;  // touchingLast_ holds the last collide()'s pairs
+  void keepTouching();
   std::vector<std::unique_ptr<ConvexData>> convexData_;
   dBodyID probe_ = nullptr;
   DrawHints draw_;

@@ -160,6 +160,11 @@ TEST(CompareMetrics, HeldDepthCountsOnlyPairsTouchingAtTheCollisionBefore) {
   EXPECT_EQ(held, 0.0);
   measure(deepest, held);  // found again
   EXPECT_NEAR(held, 0.02, 1e-9);
+  // A collision nobody measured still counts as the one before.
+  s.collide();
+  s.clearContacts();
+  measure(deepest, held);
+  EXPECT_NEAR(held, 0.02, 1e-9);
   // The cylinder comes down onto the box, deeper than the box in the
   // ground: found now, so the held depth stays the box's.
   dBodySetPosition(roll, 0.1, 0, 0.5 - 0.02 + 0.05 - 0.03);
@@ -177,6 +182,8 @@ TEST(CompareMetrics, HeldDepthCountsOnlyPairsTouchingAtTheCollisionBefore) {
   measure(deepest, held);
   EXPECT_NEAR(deepest, 0.01, 1e-9);
   EXPECT_EQ(held, 0.0);
+  EXPECT_NEAR(s.deepestContact(), 0.01, 1e-9);  // measured twice: the same
+  EXPECT_EQ(s.deepestHeldContact(), 0.0);
 }
 
 TEST(CompareMetrics, DepthOfRoundPairsIsTheLeastThatSeparatesThem) {
