@@ -444,6 +444,11 @@ int main(int argc, char** argv) {
                  "with --out: record the bodies' poses every N frames for the report's 3D "
                  "replay (0: none)")
       ->check(CLI::Range(0, 1000000));
+  double traceDepthMm = 0.0;
+  app.add_option("--trace-depth", traceDepthMm,
+                 "print every contact deeper than this (mm) at each frame's collision, with "
+                 "both bodies' mass and motion, to stderr: where a deep contact came from")
+      ->check(CLI::Range(0.0, 1e6));
   bool grid = false;
   app.add_flag("--grid", grid,
                "error versus cost: quickstep 10/20/50 iterations x 1/2/4/10 sub-steps and "
@@ -477,6 +482,7 @@ int main(int argc, char** argv) {
   app.footer(helpFooter());
   CLI11_PARSE(app, argc, argv);
   if (grid) steppers = costGrid();
+  options.traceDepth = 1e-3 * traceDepthMm;
 
   dInitODE2(0);
   // quickstep and direct are ODE's own here, whatever BLOCKSTEP_REPLACE says.

@@ -470,6 +470,21 @@ void recordPoses(const Scene& scene, int done, const RunOptions& options, RunRes
   }
 }
 
+namespace {
+
+// RunOptions::traceDepth: the pairs deeper than `depth` at frame f's
+// collision k (quickstep's sub-steps collide each), one line each.
+void traceDeepPairs(const Scene& scene, const Stepper& stepper, int frame, int collision,
+                    double depth) {
+  for (const Scene::DeepPair& p : scene.pairsDeeperThan(depth)) {
+    std::fprintf(stderr, "deep %s %s frame %d.%d: %.2f mm, %s; %s | %s\n", scene.name().c_str(),
+                 stepper.label.c_str(), frame, collision, p.depth * 1e3, p.held ? "held" : "found",
+                 Scene::describeGeom(p.a).c_str(), Scene::describeGeom(p.b).c_str());
+  }
+}
+
+}  // namespace
+
 RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
   RunOptions options = given;
   if (stepper.overrides.dt) options.dt = *stepper.overrides.dt;
@@ -526,6 +541,7 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
       // The measure, out of both times.
       rec.penetration = std::max(rec.penetration, scene.deepestContact());
       rec.heldPenetration = std::max(rec.heldPenetration, scene.deepestHeldContact());
+      if (options.traceDepth > 0.0) traceDeepPairs(scene, stepper, f, k, options.traceDepth);
       const auto t1 = Clock::now();
       const double measureSeconds = seconds(collided, t1);
       switch (stepper.kind) {

@@ -167,6 +167,10 @@ struct RunOptions {
   std::function<void(int, double)> onFrame;
   // Record the bodies' poses every this many frames (0: not at all).
   int poseStride = 0;
+  // Print every contact deeper than this (m) at each measured collision,
+  // with both bodies' mass and motion, to stderr (0: none): where a run's
+  // deepest contact came from.
+  double traceDepth = 0.0;
 };
 
 // Appends the scene's body poses to r.poses when frame `done` (frames

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "adapters/ode/body_state.h"
 #include "core/collision/convex_hull.h"
@@ -245,6 +246,45 @@ double Scene::deepestContact() {
   deepestHeld_ = held;
   keepTouching();
   return deepest;
+}
+
+std::vector<Scene::DeepPair> Scene::pairsDeeperThan(double depth) const {
+  std::vector<DeepPair> deep;
+  for (const TouchingPair& pair : touching_) {
+    if (pair.odeDepth <= depth) continue;  // the least depth is never more
+    const double d = pair.round ? leastDepth(pair) : pair.odeDepth;
+    if (d <= depth) continue;
+    const bool held =
+        std::binary_search(touchingBefore_.begin(), touchingBefore_.end(), pairKey(pair));
+    deep.push_back({d, held, pair.a, pair.b});
+  }
+  std::sort(deep.begin(), deep.end(),
+            [](const DeepPair& x, const DeepPair& y) { return x.depth > y.depth; });
+  return deep;
+}
+
+std::string Scene::describeGeom(dGeomID g) {
+  static const char* const kClass[] = {"sphere",  "box",        "capsule", "cylinder",
+                                       "plane",   "ray",        "convex",  "geom transform",
+                                       "trimesh", "heightfield"};
+  const int c = dGeomGetClass(g);
+  const char* name = c >= 0 && c < 10 ? kClass[c] : "geom";
+  char line[256];
+  dBodyID b = dGeomGetBody(g);
+  if (!b) {
+    std::snprintf(line, sizeof line, "%s (static)", name);
+    return line;
+  }
+  dMass m;
+  dBodyGetMass(b, &m);
+  const dReal* x = dBodyGetPosition(b);
+  const dReal* v = dBodyGetLinearVel(b);
+  const dReal* w = dBodyGetAngularVel(b);
+  std::snprintf(line, sizeof line,
+                "%s %.3f kg at (%.3f, %.3f, %.3f) m, v (%.2f, %.2f, %.2f) m/s, "
+                "w (%.1f, %.1f, %.1f) rad/s",
+                name, m.mass, x[0], x[1], x[2], v[0], v[1], v[2], w[0], w[1], w[2]);
+  return line;
 }
 
 void Scene::keepTouching() {

@@ -89,6 +89,19 @@ class Scene {
   // times the step deep, whatever the stepper does); this says how far
   // the stepper let it sink on. Set by deepestContact().
   double deepestHeldContact() const { return deepestHeld_; }
+  // The geom pairs of the last collide() deeper than `depth` (m, measured
+  // as deepestContact() does), deepest first, each with what a study of
+  // why asks first: how deep, whether it was held, and both bodies' mass
+  // and motion (a static geom has no body).
+  struct DeepPair {
+    double depth = 0.0;
+    bool held = false;
+    dGeomID a = nullptr, b = nullptr;
+  };
+  std::vector<DeepPair> pairsDeeperThan(double depth) const;
+  // One line per geom of a DeepPair: its class, its body's mass, position,
+  // velocity and angular velocity.
+  static std::string describeGeom(dGeomID g);
   void clearContacts() { dJointGroupEmpty(contacts_); }
   int contactCount() const { return contactCount_; }
   JointError jointError() const;

@@ -186,6 +186,42 @@ TEST(CompareMetrics, HeldDepthCountsOnlyPairsTouchingAtTheCollisionBefore) {
   EXPECT_EQ(s.deepestHeldContact(), 0.0);
 }
 
+// The trace behind --trace-depth: the pairs deeper than a depth, deepest
+// first, measured as the runner's depth is, found or held, with the bodies
+// that made them.
+TEST(CompareMetrics, PairsDeeperThanADepthComeDeepestFirstWithTheirBodies) {
+  Scene s;
+  dCreatePlane(s.space(), 0, 0, 1, 0);
+  dMass m;
+  dMassSetBoxTotal(&m, 2.5, 0.5, 0.5, 0.5);
+  dBodyID box = s.addBody(m, 0, 0, 0.25 - 0.02);  // 20 mm into the ground
+  s.addGeom(dCreateBox(s.space(), 0.5, 0.5, 0.5), box);
+  dBodySetLinearVel(box, 0, 0, -1.5);
+  dMassSetSphereTotal(&m, 0.4, 0.1);
+  dBodyID ball = s.addBody(m, 3, 0, 0.1 - 0.005);  // 5 mm in
+  s.addGeom(dCreateSphere(s.space(), 0.1), ball);
+  s.collide();
+  std::vector<Scene::DeepPair> deep = s.pairsDeeperThan(0.001);
+  ASSERT_EQ(deep.size(), 2u);
+  EXPECT_NEAR(deep[0].depth, 0.02, 1e-9);
+  EXPECT_NEAR(deep[1].depth, 0.005, 1e-9);
+  EXPECT_FALSE(deep[0].held);
+  EXPECT_EQ(s.pairsDeeperThan(0.01).size(), 1u);
+  const std::string boxSide =
+      Scene::describeGeom(dGeomGetBody(deep[0].a) == box ? deep[0].a : deep[0].b);
+  EXPECT_NE(boxSide.find("box 2.500 kg"), std::string::npos) << boxSide;
+  EXPECT_NE(boxSide.find("v (0.00, 0.00, -1.50)"), std::string::npos) << boxSide;
+  const std::string ground =
+      Scene::describeGeom(dGeomGetBody(deep[0].a) == box ? deep[0].b : deep[0].a);
+  EXPECT_EQ(ground, "plane (static)");
+  s.clearContacts();
+  s.collide();
+  deep = s.pairsDeeperThan(0.001);
+  ASSERT_EQ(deep.size(), 2u);
+  EXPECT_TRUE(deep[0].held);
+  EXPECT_TRUE(deep[1].held);
+}
+
 TEST(CompareMetrics, DepthOfRoundPairsIsTheLeastThatSeparatesThem) {
   dMass m;
   dMassSetSphereTotal(&m, 1.0, 0.1);
