@@ -236,10 +236,9 @@ double Scene::deepestContact() {
             [](const TouchingPair& x, const TouchingPair& y) { return x.odeDepth > y.odeDepth; });
   double deepest = 0.0, held = 0.0;
   for (const TouchingPair& pair : touching_) {
-    const bool wasTouching =
-        std::binary_search(touchingBefore_.begin(), touchingBefore_.end(), pairKey(pair));
+    const bool wasTouching = touchingBefore(pair);
     if (pair.odeDepth <= deepest && (!wasTouching || pair.odeDepth <= held)) continue;
-    const double depth = pair.round ? leastDepth(pair) : pair.odeDepth;
+    const double depth = measuredDepth(pair);
     deepest = std::max(deepest, depth);
     if (wasTouching) held = std::max(held, depth);
   }
@@ -252,23 +251,52 @@ std::vector<Scene::DeepPair> Scene::pairsDeeperThan(double depth) const {
   std::vector<DeepPair> deep;
   for (const TouchingPair& pair : touching_) {
     if (pair.odeDepth <= depth) continue;  // the least depth is never more
-    const double d = pair.round ? leastDepth(pair) : pair.odeDepth;
-    if (d <= depth) continue;
-    const bool held =
-        std::binary_search(touchingBefore_.begin(), touchingBefore_.end(), pairKey(pair));
-    deep.push_back({d, held, pair.a, pair.b});
+    const double d = measuredDepth(pair);
+    if (d > depth) deep.push_back({d, touchingBefore(pair), pair.a, pair.b});
   }
   std::sort(deep.begin(), deep.end(),
             [](const DeepPair& x, const DeepPair& y) { return x.depth > y.depth; });
   return deep;
 }
 
+double Scene::measuredDepth(const TouchingPair& pair) const {
+  return pair.round ? leastDepth(pair) : pair.odeDepth;
+}
+
+bool Scene::touchingBefore(const TouchingPair& pair) const {
+  return std::binary_search(touchingBefore_.begin(), touchingBefore_.end(), pairKey(pair));
+}
+
 std::string Scene::describeGeom(dGeomID g) {
-  static const char* const kClass[] = {"sphere",  "box",        "capsule", "cylinder",
-                                       "plane",   "ray",        "convex",  "geom transform",
-                                       "trimesh", "heightfield"};
-  const int c = dGeomGetClass(g);
-  const char* name = c >= 0 && c < 10 ? kClass[c] : "geom";
+  const char* name = "geom";
+  switch (dGeomGetClass(g)) {
+    case dSphereClass:
+      name = "sphere";
+      break;
+    case dBoxClass:
+      name = "box";
+      break;
+    case dCapsuleClass:
+      name = "capsule";
+      break;
+    case dCylinderClass:
+      name = "cylinder";
+      break;
+    case dPlaneClass:
+      name = "plane";
+      break;
+    case dConvexClass:
+      name = "convex";
+      break;
+    case dTriMeshClass:
+      name = "trimesh";
+      break;
+    case dHeightfieldClass:
+      name = "heightfield";
+      break;
+    default:
+      break;
+  }
   char line[256];
   dBodyID b = dGeomGetBody(g);
   if (!b) {

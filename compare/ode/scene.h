@@ -168,6 +168,11 @@ class Scene {
   // The least separating distance of a round pair (libccd GJK + EPA), or
   // its ODE depth where the geoms are not shapes the core knows.
   double leastDepth(const TouchingPair& pair) const;
+  // A pair's depth as the runner measures it: the least for round pairs,
+  // ODE's for the rest.
+  double measuredDepth(const TouchingPair& pair) const;
+  // Whether the pair touched at the collide() before the last one.
+  bool touchingBefore(const TouchingPair& pair) const;
   bool coreShape(dGeomID g, Shape& out) const;
   std::vector<TouchingPair> touching_;
   // A geom's and a pair's identity, as numbers (ordered).
