@@ -203,6 +203,14 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_LOAD_RELATIVE_CONTACTS", v, 0, n, 1)) {
     s.loadRelativeContacts = n != 0;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_RETAKE_TURNS");
+      v && parseInt("BLOCKSTEP_RETAKE_TURNS", v, 0, n, 1)) {
+    s.retakeTurningParts = n != 0;
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_IMPACT_DEPTH");
+      v && parseReal("BLOCKSTEP_IMPACT_DEPTH", v, x)) {
+    s.impactDepth = x;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_CHAIN_BLOCKS");
       v && parseInt("BLOCKSTEP_CHAIN_BLOCKS", v, 0, n, 1)) {
     s.chainBlocks = n != 0;
@@ -578,6 +586,29 @@ int dWorldGetBlockLoadRelativeContacts(dWorldID w) {
   return guarded(__func__, 0, [&] {
     return heldOrSolvers(w, &ode::BridgeSettings::loadRelativeContacts,
                          &SolverSettings::loadRelativeContacts)
+               ? 1
+               : 0;
+  });
+}
+void dWorldSetBlockImpactDepth(dWorldID w, dReal metres) {
+  if (!(metres >= 0.0) || !std::isfinite(metres)) {
+    say("%s(%g): expected a depth >= 0 (m; 0: off); call ignored", __func__, double(metres));
+    return;
+  }
+  guarded(__func__, [&] { LockedWorld(w).settings().impactDepth = metres; });
+}
+dReal dWorldGetBlockImpactDepth(dWorldID w) {
+  return guarded(__func__, dReal(0), [&] {
+    return dReal(heldOrSolvers(w, &ode::BridgeSettings::impactDepth, &SolverSettings::impactDepth));
+  });
+}
+void dWorldSetBlockRetakeTurns(dWorldID w, int on) {
+  guarded(__func__, [&] { LockedWorld(w).settings().retakeTurningParts = on != 0; });
+}
+int dWorldGetBlockRetakeTurns(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    return heldOrSolvers(w, &ode::BridgeSettings::retakeTurningParts,
+                         &SolverSettings::retakeTurningParts)
                ? 1
                : 0;
   });

@@ -99,6 +99,8 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   if (settings_.contactIslandRows) s.contactIslandRows = *settings_.contactIslandRows;
   if (settings_.lightBodyGroups) s.lightBodyGroups = *settings_.lightBodyGroups;
   if (settings_.loadRelativeContacts) s.loadRelativeContacts = *settings_.loadRelativeContacts;
+  if (settings_.impactDepth) s.impactDepth = *settings_.impactDepth;
+  if (settings_.retakeTurningParts) s.retakeTurningParts = *settings_.retakeTurningParts;
   if (settings_.maxTurnPerSubstep) s.maxTurnPerSubstep = *settings_.maxTurnPerSubstep;
   if (settings_.maxTurnPerRefresh) s.maxTurnPerRefresh = *settings_.maxTurnPerRefresh;
   if (settings_.relaxCancelsDrift) s.relaxCancelsDrift = *settings_.relaxCancelsDrift;

@@ -68,6 +68,14 @@ struct BridgeSettings {
   // under their own weight (SolverSettings::loadRelativeContacts; unset:
   // the solver's own).
   std::optional<bool> loadRelativeContacts;
+  // In larger contact islands, the manifolds around each fast-closing
+  // fresh contact as one exact group (SolverSettings::impactDepth, m;
+  // unset: the solver's own).
+  std::optional<double> impactDepth;
+  // Colliding every sub-step, a part that spins a touching body past the
+  // turn per sub-step is taken again, shorter
+  // (SolverSettings::retakeTurningParts; unset: the solver's own).
+  std::optional<bool> retakeTurningParts;
   // The turn per sub-step above which a step runs more sub-steps
   // (SolverSettings::maxTurnPerSubstep; unset: the solver's own).
   std::optional<double> maxTurnPerSubstep;

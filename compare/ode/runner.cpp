@@ -83,6 +83,8 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.chains) dWorldSetBlockChainBlocks(w, *o.chains ? 1 : 0);
   if (o.lightGroups) dWorldSetBlockLightBodyGroups(w, *o.lightGroups ? 1 : 0);
   if (o.loadContacts) dWorldSetBlockLoadRelativeContacts(w, *o.loadContacts ? 1 : 0);
+  if (o.impactDepth) dWorldSetBlockImpactDepth(w, *o.impactDepth);
+  if (o.retakeTurns) dWorldSetBlockRetakeTurns(w, *o.retakeTurns ? 1 : 0);
   if (o.contactRows) dWorldSetBlockContactIslandRows(w, *o.contactRows);
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
   if (o.refreshTurn) dWorldSetBlockRefreshTurn(w, *o.refreshTurn);
@@ -306,6 +308,10 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.lightGroups = flag(text, key, value);
   } else if (key == "load_contacts") {
     o.loadContacts = flag(text, key, value);
+  } else if (key == "impact_depth") {
+    o.impactDepth = decimal(text, key, value, 0.0, 1.0);
+  } else if (key == "retake") {
+    o.retakeTurns = flag(text, key, value);
   } else if (key == "contact_rows") {
     o.contactRows = whole(text, key, value, 0, 4096);
   } else if (key == "max_turn") {
@@ -353,6 +359,12 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"load_contacts",
            "blockstep: fresh contacts on jointed bodies give no more under their load than "
            "under their own weight, 0 or 1"},
+          {"impact_depth",
+           "blockstep: colliding every sub-step, contacts closing more than this a sub-step, m, "
+           "solved with their neighbours as exact groups, 0: off"},
+          {"retake",
+           "blockstep: colliding every sub-step, a part that spins a touching body past max_turn "
+           "taken again shorter, 0 or 1"},
           {"max_turn", "blockstep: more sub-steps past this turn per sub-step, rad, 0: off"},
           {"refresh_turn",
            "blockstep: sub-steps keep their rows until bodies turn this far, rad, 0: always "

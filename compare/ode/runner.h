@@ -44,6 +44,8 @@ struct Overrides {
   std::optional<int> islandRows;      // island blocks up to this many joint rows (0: off)
   std::optional<bool> lightGroups;    // light bodies' contacts as exact groups in larger islands
   std::optional<bool> loadContacts;   // fresh contacts on jointed bodies relative to their load
+  std::optional<double> impactDepth;  // fast-closing contacts' neighbourhoods as exact groups, m
+  std::optional<bool> retakeTurns;    // parts that spin a touching body up taken again, shorter
   std::optional<bool> chains;         // larger islands cut into chains of that many rows
   std::optional<int> contactRows;     // contact islands as one block up to this many points
   std::optional<double> maxTurn;      // rad per sub-step before more sub-steps (0: off)

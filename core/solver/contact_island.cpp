@@ -91,6 +91,7 @@ void ContactIslands::indexBodies(int island, const std::vector<ConstraintBlock>&
     }
   }
   std::sort(incidence_.begin(), incidence_.end());
+  indexed_ = true;
 }
 
 void ContactIslands::addIsland(int island, const std::vector<ConstraintBlock>& blocks,
@@ -135,17 +136,9 @@ void ContactIslands::addLightBodies(int island, const std::vector<ConstraintBloc
   const std::int32_t count = islandStart[island + 1] - first;
   // Most islands have no light body (a cloth over a static cube, a
   // stack): a pass over the manifolds says so before the bodies are
-  // indexed (indexing cloth32's island every sub-step cost it 20%).
-  // Bodies a joint holds are marked with this call's stamp (a cloth's
-  // cells under a heavy roller are never light: cloth_roll spent 9% more
-  // indexing them).
-  if (jointStamp_.size() < bodies.size()) jointStamp_.resize(bodies.size(), 0);
-  ++stamp_;
-  for (std::int32_t k = 0; k < count; ++k) {
-    const ConstraintBlock& blk = blocks[first + k];
-    if (blk.unilateral) continue;
-    jointStamp_[blk.bodyA] = jointStamp_[blk.bodyB] = stamp_;
-  }
+  // indexed (indexing cloth32's island every sub-step cost it 20%). The
+  // bodies a joint holds are never light (a cloth's cells under a heavy
+  // roller: cloth_roll spent 9% more indexing them).
   auto lightBeside = [&](std::int32_t body, std::int32_t other) {
     return jointStamp_[body] != stamp_ &&
            bodies[body].invMass >= kLightBodyRatio * bodies[other].invMass;
@@ -156,10 +149,8 @@ void ContactIslands::addLightBodies(int island, const std::vector<ConstraintBloc
     if (!usable_[k] || blk.bodyA == staticBody || blk.bodyB == staticBody) continue;
     any = lightBeside(blk.bodyA, blk.bodyB) || lightBeside(blk.bodyB, blk.bodyA);
   }
-  groupsOfIsland_[island] = {static_cast<std::int32_t>(groups_.size()),
-                             static_cast<std::int32_t>(groups_.size())};
   if (!any) return;
-  indexBodies(island, blocks, islandStart, staticBody);
+  if (!indexed_) indexBodies(island, blocks, islandStart, staticBody);
   // The bodies at least kLightBodyRatio times lighter than a body they
   // touch, lightest first. A body a joint holds is left out: the joint
   // adds its neighbours' mass, which the group would not see (a 1 kg
@@ -180,8 +171,6 @@ void ContactIslands::addLightBodies(int island, const std::vector<ConstraintBloc
       lightBodies_.emplace_back(-bodies[body].invMass, body);
   }
   std::sort(lightBodies_.begin(), lightBodies_.end());
-  taken_.assign(static_cast<std::size_t>(count), 0);
-  groupsOfIsland_[island].first = static_cast<std::int32_t>(groups_.size());
   for (const auto& [negativeInvMass, body] : lightBodies_) {
     members_.clear();
     int rows = 0;
@@ -197,7 +186,67 @@ void ContactIslands::addLightBodies(int island, const std::vector<ConstraintBloc
       taken_[k] = 1;
     appendGroup(blocks, first, members_);
   }
-  groupsOfIsland_[island].second = static_cast<std::int32_t>(groups_.size());
+}
+
+void ContactIslands::markJointBodies(int island, const std::vector<ConstraintBlock>& blocks,
+                                     const std::vector<std::int32_t>& islandStart,
+                                     std::int32_t staticBody, std::size_t bodyCount) {
+  if (jointStamp_.size() < bodyCount) jointStamp_.resize(bodyCount, 0);
+  ++stamp_;
+  for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
+    const ConstraintBlock& blk = blocks[bi];
+    if (blk.unilateral) continue;
+    jointStamp_[blk.bodyA] = jointStamp_[blk.bodyB] = stamp_;
+  }
+  if (static_cast<std::size_t>(staticBody) < jointStamp_.size()) jointStamp_[staticBody] = 0;
+}
+
+void ContactIslands::addImpacts(int island, const std::vector<ConstraintBlock>& blocks,
+                                const std::vector<std::int32_t>& islandStart,
+                                std::int32_t staticBody, int maxRows) {
+  const std::int32_t first = islandStart[island];
+  const std::int32_t count = islandStart[island + 1] - first;
+  for (std::int32_t start = 0; start < count; ++start) {
+    if (!impact_[start] || taken_[start] || heldByJoint(blocks[first + start])) continue;
+    if (!indexed_) indexBodies(island, blocks, islandStart, staticBody);
+    members_.assign(1, start);
+    taken_[start] = 1;
+    int rows = blocks[first + start].equality;
+    bool full = false;
+    // A body's manifolds on the static body first: the impulse's path ends
+    // there, and a group cut off before it would hand the whole impulse
+    // to the last body inside it.
+    for (std::size_t q = 0; q < members_.size() && !full; ++q) {
+      const ConstraintBlock& blk = blocks[first + members_[q]];
+      for (const std::int32_t body : {blk.bodyA, blk.bodyB}) {
+        if (body == staticBody) continue;
+        const auto begin =
+            std::lower_bound(incidence_.begin(), incidence_.end(), std::make_pair(body, 0));
+        for (const bool toStatic : {true, false}) {
+          for (auto it = begin; it != incidence_.end() && it->first == body && !full; ++it) {
+            const std::int32_t k = it->second;
+            const ConstraintBlock& other = blocks[first + k];
+            if ((other.bodyA == staticBody || other.bodyB == staticBody) != toStatic) continue;
+            if (!usable_[k] || taken_[k] || heldByJoint(other)) continue;
+            if (rows + other.equality > maxRows) {
+              full = true;
+              break;
+            }
+            taken_[k] = 1;
+            members_.push_back(k);
+            rows += other.equality;
+          }
+        }
+        if (full) break;
+      }
+    }
+    if (members_.size() < 2) {  // one manifold alone is already one block
+      taken_[start] = 0;
+      continue;
+    }
+    appendGroup(blocks, first, members_);
+    groups_.back().impact = true;
+  }
 }
 
 void ContactIslands::appendGroup(const std::vector<ConstraintBlock>& blocks, std::int32_t first,
@@ -229,6 +278,7 @@ void ContactIslands::prepare(const std::vector<ConstraintBlock>& blocks,
   // Grow only while warming up.
   if (storage_.size() < storage) storage_.resize(storage);
   if (scratch_.size() < 4 * entryRow_.size()) scratch_.resize(4 * entryRow_.size());
+  if (warmImpulse_.size() < entryRow_.size()) warmImpulse_.resize(entryRow_.size());
   if (active_.size() < entryRow_.size()) {
     active_.resize(entryRow_.size());
     activeList_.resize(entryRow_.size());
@@ -257,6 +307,20 @@ void ContactIslands::prepare(const std::vector<ConstraintBlock>& blocks,
       if (active[i]) list[g.activeCount++] = i;
     }
     g.factorStale = true;
+    if (g.impact) {
+      for (int i = 0; i < n; ++i)
+        warmImpulse_[g.firstEntry + i] = rows[rowOf[i]].impulse;
+    }
+  }
+}
+
+void ContactIslands::capImpactImpulses(std::vector<ConstraintRow>& rows) const {
+  for (const Group& g : groups_) {
+    if (!g.impact) continue;
+    for (std::int32_t e = g.firstEntry; e < g.firstEntry + g.size; ++e) {
+      double& impulse = rows[entryRow_[e]].impulse;
+      impulse = std::min(impulse, warmImpulse_[e]);
+    }
   }
 }
 
@@ -397,27 +461,28 @@ ContactIslands::Outcome ContactIslands::solve(int group, bool useBias,
     }
     for (int a = 0; a < m; ++a)
       change[list[a]] = std::max(next[a], 0.0) - rows[rowOf[list[a]]].impulse;
-    // The inactive point that would sink most joins the set.
-    int sinking = -1;
-    double deepest = -kSinkTolerance;
+    // The inactive points that would sink join the set, all at once: one
+    // a round, an impact's group of 128 points (SolverSettings::
+    // impactDepth) ran out of rounds three times as often in the pile's
+    // landing, and each time its manifolds fell back to Gauss-Seidel.
+    int joined = 0;
     for (int i = 0; i < n; ++i) {
       if (active[i]) continue;
       const double* Ki = K + static_cast<std::size_t>(i) * n;
       double w = residual[i];
       for (int j = 0; j < n; ++j)
         w += Ki[j] * change[j];
-      if (w < deepest) {
-        deepest = w;
-        sinking = i;
+      if (w < -kSinkTolerance) {
+        active[i] = 1;
+        ++joined;
       }
     }
-    if (sinking >= 0) {
+    if (joined > 0) {
       // In island order, to keep the factor's profile.
-      active[sinking] = 1;
-      int at = g.activeCount++;
-      for (; at > 0 && list[at - 1] > sinking; --at)
-        list[at] = list[at - 1];
-      list[at] = sinking;
+      g.activeCount = 0;
+      for (int i = 0; i < n; ++i) {
+        if (active[i]) list[g.activeCount++] = i;
+      }
       g.factorStale = true;
       continue;
     }

@@ -74,11 +74,11 @@ class ContactIslands {
   // its points' active set is exact where the manifold's own block falls
   // back to projected passes (a hull on two vertices and an edge crept at
   // 12 mm/s for good).
-  template <class Eligible>
+  template <class Eligible, class Impact>
   void select(const std::vector<ConstraintBlock>& blocks,
               const std::vector<std::int32_t>& islandStart, int islandBegin, int islandEnd,
               std::int32_t staticBody, const std::vector<SolverBody>& bodies, int maxRows,
-              bool lightBodies, Eligible eligible);
+              bool lightBodies, bool impactGroups, Eligible eligible, Impact impact);
   // Whether island i has groups; whether block b is in one.
   bool covers(int island) const {
     return island < static_cast<int>(groupsOfIsland_.size()) &&
@@ -90,7 +90,8 @@ class ContactIslands {
   // The groups of island i: [groupsBegin, groupsEnd).
   int groupsBegin(int island) const { return groupsOfIsland_[island].first; }
   int groupsEnd(int island) const { return groupsOfIsland_[island].second; }
-  // Whether group g is its whole island (else a light body's manifolds).
+  // Whether group g is its whole island (else a light body's manifolds
+  // or an impact's).
   bool wholeIsland(int g) const { return groups_[g].wholeIsland; }
   // f(block index) for each manifold of group g, in the island's order
   // (a light body's; a whole island's group is breadth-first).
@@ -105,6 +106,10 @@ class ContactIslands {
   // the active set starts as the points touching.
   void prepare(const std::vector<ConstraintBlock>& blocks, const std::vector<ConstraintRow>& rows,
                const std::vector<SolverBody>& bodies);
+
+  // Each row of an impact's group (addImpacts) back to at most the
+  // impulse it was warm started with at prepare.
+  void capImpactImpulses(std::vector<ConstraintRow>& rows) const;
 
   enum class Outcome {
     Exact,     // solved and applied
@@ -125,6 +130,7 @@ class ContactIslands {
     std::int32_t nullCount = 0;  // null basis vectors of the active set's K
     bool factorStale = true;
     bool wholeIsland = false;
+    bool impact = false;
   };
   // The most rounds of the active set a solve may take.
   static constexpr int kMaxRounds = 8;
@@ -145,8 +151,22 @@ class ContactIslands {
   void addLightBodies(int island, const std::vector<ConstraintBlock>& blocks,
                       const std::vector<std::int32_t>& islandStart, std::int32_t staticBody,
                       const std::vector<SolverBody>& bodies, int maxRows);
+  // A group around each impact (a usable manifold impact(blk) says closes
+  // fast): the usable manifolds breadth-first from it over the bodies
+  // they share, at most maxRows rows, none in an earlier group.
+  void addImpacts(int island, const std::vector<ConstraintBlock>& blocks,
+                  const std::vector<std::int32_t>& islandStart, std::int32_t staticBody,
+                  int maxRows);
+  // Marks the bodies a joint of island i holds with a new stamp_ (the
+  // static body never).
+  void markJointBodies(int island, const std::vector<ConstraintBlock>& blocks,
+                       const std::vector<std::int32_t>& islandStart, std::int32_t staticBody,
+                       std::size_t bodyCount);
+  bool heldByJoint(const ConstraintBlock& blk) const {
+    return jointStamp_[blk.bodyA] == stamp_ || jointStamp_[blk.bodyB] == stamp_;
+  }
   // incidence_: (body, block) of island i, by body (the static body left
-  // out).
+  // out); once an island (indexed_).
   void indexBodies(int island, const std::vector<ConstraintBlock>& blocks,
                    const std::vector<std::int32_t>& islandStart, std::int32_t staticBody);
   // A group of the island's manifolds first + k for k in `members`.
@@ -167,6 +187,7 @@ class ContactIslands {
   std::vector<Group> groups_;
   // Per normal row of a group, in the group's order:
   std::vector<std::int32_t> entryRow_, entryBlock_;
+  std::vector<double> warmImpulse_;       // an impact group's rows': as warm started
   std::vector<std::int32_t> activeList_;  // the active rows (group-local), first activeCount
   std::vector<std::uint8_t> active_;
   std::vector<double> storage_;  // per group: K, factor, null basis (size^2 each)
@@ -184,17 +205,22 @@ class ContactIslands {
   // select's: whether each manifold of the island at hand may be grouped
   // (a contact, eligible); joints never are.
   std::vector<std::uint8_t> usable_;
-  // addLightBodies': the bodies a joint holds carry the call's stamp.
+  // select's: whether each manifold of the island at hand is an impact;
+  // whether incidence_ holds the island at hand.
+  std::vector<std::uint8_t> impact_;
+  bool indexed_ = false;
+  // The bodies a joint of the island at hand holds carry stamp_
+  // (markJointBodies).
   std::vector<std::uint32_t> jointStamp_;
   std::uint32_t stamp_ = 0;
 };
 
-template <class Eligible>
+template <class Eligible, class Impact>
 void ContactIslands::select(const std::vector<ConstraintBlock>& blocks,
                             const std::vector<std::int32_t>& islandStart, int islandBegin,
                             int islandEnd, std::int32_t staticBody,
                             const std::vector<SolverBody>& bodies, int maxRows, bool lightBodies,
-                            Eligible eligible) {
+                            bool impactGroups, Eligible eligible, Impact impact) {
   if (static_cast<int>(groupsOfIsland_.size()) < islandEnd) groupsOfIsland_.resize(islandEnd);
   std::fill(groupsOfIsland_.begin() + islandBegin, groupsOfIsland_.begin() + islandEnd,
             std::pair<std::int32_t, std::int32_t>{0, 0});
@@ -208,16 +234,30 @@ void ContactIslands::select(const std::vector<ConstraintBlock>& blocks,
     int rows = 0;
     bool all = true;
     usable_.clear();
+    indexed_ = false;
     for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi) {
       const ConstraintBlock& blk = blocks[bi];
       usable_.push_back(blk.unilateral && eligible(blk));
       all = all && usable_.back();
       rows += blk.equality;
     }
-    if (all && rows <= maxRows)
+    if (all && rows <= maxRows) {
       addIsland(island, blocks, islandStart, staticBody);
-    else if (lightBodies)
-      addLightBodies(island, blocks, islandStart, staticBody, bodies, maxRows);
+      continue;
+    }
+    const auto groupsBefore = static_cast<std::int32_t>(groups_.size());
+    groupsOfIsland_[island] = {groupsBefore, groupsBefore};
+    taken_.assign(usable_.size(), 0);
+    if (impactGroups || lightBodies)
+      markJointBodies(island, blocks, islandStart, staticBody, bodies.size());
+    if (impactGroups) {
+      impact_.clear();
+      for (std::int32_t bi = islandStart[island]; bi < islandStart[island + 1]; ++bi)
+        impact_.push_back(usable_[bi - islandStart[island]] && impact(blocks[bi]));
+      addImpacts(island, blocks, islandStart, staticBody, maxRows);
+    }
+    if (lightBodies) addLightBodies(island, blocks, islandStart, staticBody, bodies, maxRows);
+    groupsOfIsland_[island].second = static_cast<std::int32_t>(groups_.size());
   }
 }
 

@@ -387,6 +387,12 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
         guard_.addRemainingErrors(blocks_, rows_, bodies_, islandStart_, islandBegin_, islandEnd_,
                                   h, in.h, islands);
     }
+    // An impact's group stops a landing within one sub-step: its impulses
+    // are the landing's, not the load its contacts go on carrying, and
+    // warm started into the next sub-step's per-manifold rows (one sweep)
+    // they threw the load back up (a 4 kg box stopped on a column left at
+    // 0.65 m/s upward). Each keeps at most what it was warm started with.
+    if (contactIslandRows_ > 0) contactIslands_.capImpactImpulses(rows_);
     storeImpulses(in, h);
   }
 }
@@ -715,7 +721,7 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     heldByJoint_[dummy_] = 0;  // the world: what a pinned cloth hangs from
   }
   // Before the rows' error is kept for carried sub-steps (rest depth).
-  selectContactIslands(in, s);
+  selectContactIslands(in, s, h);
   useIslandBlock_ = s.blockMode == BlockMode::Block && s.islandBlockRows > 1;
   if (useIslandBlock_) {
     // Islands and their joints stay the same over a step's sub-steps:
@@ -805,15 +811,32 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
 // (SolverSettings::contactIslandRows, contact_island.h): islands of
 // contacts that do not bounce. Their points rest kRestDepth deep: each
 // row's error counts from there.
-void Solver::selectContactIslands(const StepInput& in, const SolverSettings& s) {
+void Solver::selectContactIslands(const StepInput& in, const SolverSettings& s, double h) {
   contactIslandRows_ = s.blockMode == BlockMode::Block ? s.contactIslandRows : 0;
   if (contactIslandRows_ <= 0) return;
+  const double impactDepth = s.impactDepth;
+  auto eligible = [&](const ConstraintBlock& blk) {
+    const ContactSurface& surface = in.contacts[blk.contact].surface;
+    return surface.restitution <= 0.0 && surface.softness.mode != Softness::Mode::Stiffness;
+  };
+  // How much deeper a point would be, unpushed, at the sub-step's end:
+  // its gap (C) closed at its velocity now, counted from where it is.
+  // Only contacts found at this sub-step's start (collision every
+  // sub-step): under the drop-in's frame collision the groups gained no
+  // depth on the 1,000-shape pile and it settled deeper (last second
+  // 1.44 -> 2.3 mm).
+  auto impact = [&](const ConstraintBlock& blk) {
+    if (blk.contact < firstFreshContact_) return false;
+    const ConstraintRow* rows = &rows_[blk.firstRow];
+    for (int i = 0; i < blk.equality; ++i) {
+      const double v = rowVelocity(rows[i], bodies_[blk.bodyA], bodies_[blk.bodyB]);
+      if (std::min(rows[i].C, 0.0) - (rows[i].C + h * v) > impactDepth) return true;
+    }
+    return false;
+  };
   contactIslands_.select(blocks_, islandStart_, islandBegin_, islandEnd_, dummy_, bodies_,
-                         contactIslandRows_, s.lightBodyGroups, [&](const ConstraintBlock& blk) {
-                           const ContactSurface& surface = in.contacts[blk.contact].surface;
-                           return surface.restitution <= 0.0 &&
-                                  surface.softness.mode != Softness::Mode::Stiffness;
-                         });
+                         contactIslandRows_, s.lightBodyGroups, impactDepth > 0.0, eligible,
+                         impact);
   for (std::int32_t bi = blockBegin_; bi < blockEnd_; ++bi) {
     const ConstraintBlock& blk = blocks_[bi];
     if (!contactIslands_.groups(bi)) continue;

@@ -131,7 +131,7 @@ class Solver {
   static constexpr double kUnmetResidual = 1e-3;
   double blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
                           bool inIslandBlock, SoftnessCache& cache) const;
-  void selectContactIslands(const StepInput& in, const SolverSettings& s);
+  void selectContactIslands(const StepInput& in, const SolverSettings& s, double h);
   bool carriesLoadThroughJoint(const SolverSettings& s, const ConstraintBlock& blk) const;
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk, bool inIslandBlock,
                    bool inGroup, bool islandSolvesAll);

@@ -421,6 +421,8 @@ void World::validateSettings(const SolverSettings& s) const {
                 std::to_string(SolverSettings::kMaxIterations) + "]");
   if (!(s.maxTurnPerSubstep >= 0.0) || !std::isfinite(s.maxTurnPerSubstep))
     throw Error("the turn per sub-step must be >= 0 and finite (0: a fixed sub-step count)");
+  if (!(s.impactDepth >= 0.0) || !std::isfinite(s.impactDepth))
+    throw Error("the impact depth must be >= 0 and finite (0: no impact groups)");
   if (s.threads < 0 || s.threads > SolverSettings::kMaxThreads)
     throw Error("threads must be in [0, " + std::to_string(SolverSettings::kMaxThreads) +
                 "] (0: one per core)");
@@ -519,7 +521,11 @@ void World::keepContactsForNextStep() {
 // the frame's (cloth cells at 60 Hz reach 50 mm into a cube between two
 // frame collisions). A part is the settings' sub-step, or shorter (down
 // to maxSubstepFactor times) while a body in contact turns fast
-// (surfaceTurnRate). Contacts the caller added (addContact) hold for
+// (surfaceTurnRate). A part whose own solve spins a touching body up past
+// that turn is taken again from its start, shorter, once
+// (SolverSettings::retakeTurningParts): its contacts were linearized
+// where the body was, and it turned through what it touches within that
+// very part. Contacts the caller added (addContact) hold for
 // every part; forces act on every part; contacts push out of penetration
 // no faster than over the whole step (Solver::penetrationRate). An island
 // the guard catches in one part is put back as it was before the whole
@@ -536,9 +542,12 @@ void World::stepCollidingEachSubstep(double h) {
   stats_.runaways.clear();
   stats_.runawayBodies.clear();
   stats_.runawayJoints.clear();
+  stats_.retakenParts = 0;
   heldTypes_.clear();
   double done = 0.0;
   double longest = nominal / Solver::substepsAt(part, nominal, surfaceTurnRate(previousContacts_));
+  const double shortest = nominal / Solver::mostSubsteps(part);
+  bool retaken = false;
   int k = 0;
   for (bool last = false; !last; ++k) {
     // The part: the remaining time in equal parts no longer than the
@@ -555,21 +564,35 @@ void World::stepCollidingEachSubstep(double h) {
     in.penetrationStep = h;
     in.nominalSubstep = nominal;
     in.firstFreshContact = static_cast<std::int32_t>(callerContacts_.size());
-    in.clearForces = last;
+    in.clearForces = false;  // every part's; cleared after the last
+    if (settings_.retakeTurningParts) savePartStart();
     solver_.step(in, part, partStats_);
-    done += hp;
-    keepContactsForNextStep();
-    longest = nominal / Solver::substepsAt(part, nominal, surfaceTurnRate(previousContacts_));
-
+    // A retaken part's time counts too.
     stats_.collideSeconds += collideSeconds;
-    stats_.iterations += partStats_.iterations;
     stats_.solveSeconds += partStats_.solveSeconds;
     stats_.stepSeconds += partStats_.stepSeconds;
+    const double turnRate = surfaceTurnRate(contacts_);
+    if (settings_.retakeTurningParts && !retaken && hp > shortest * (1.0 + 1e-9) &&
+        turnRate * hp > settings_.maxTurnPerSubstep && partStats_.runaways.empty() &&
+        partStats_.brokenJoints.empty()) {
+      restorePartStart();
+      retaken = true;
+      ++stats_.retakenParts;
+      longest = nominal / Solver::substepsAt(part, nominal, turnRate);
+      last = false;
+      continue;
+    }
+    retaken = false;
+    done += hp;
+    keepContactsForNextStep();
+    longest = nominal / Solver::substepsAt(part, nominal, turnRate);
+
+    stats_.iterations += partStats_.iterations;
     stats_.islands = partStats_.islands;
     stats_.blocks = partStats_.blocks;
     stats_.rows = partStats_.rows;
     for (ResidualSample r : partStats_.residuals) {
-      r.substep = k;
+      r.substep = k - stats_.retakenParts;
       stats_.residuals.push_back(r);
     }
     stats_.brokenJoints.insert(stats_.brokenJoints.end(), partStats_.brokenJoints.begin(),
@@ -592,11 +615,30 @@ void World::stepCollidingEachSubstep(double h) {
       bodies_[id].type = BodyType::Static;
     }
   }
-  stats_.substeps = k;
-  for (const auto& [id, type] : heldTypes_) {
+  stats_.substeps = k - stats_.retakenParts;
+  for (const auto& [id, type] : heldTypes_)
     bodies_[id].type = type;
-    bodies_[id].force.setZero();
-    bodies_[id].torque.setZero();
+  for (Body& b : bodies_) {
+    b.force.setZero();
+    b.torque.setZero();
+  }
+}
+
+void World::savePartStart() {
+  partStart_.resize(bodies_.size());
+  for (std::size_t i = 0; i < bodies_.size(); ++i) {
+    const Body& b = bodies_[i];
+    partStart_[i] = Saved{b.position, b.linearVelocity, b.angularVelocity, b.orientation};
+  }
+}
+
+void World::restorePartStart() {
+  for (std::size_t i = 0; i < bodies_.size(); ++i) {
+    Body& b = bodies_[i];
+    b.position = partStart_[i].x;
+    b.orientation = partStart_[i].q;
+    b.linearVelocity = partStart_[i].v;
+    b.angularVelocity = partStart_[i].w;
   }
 }
 

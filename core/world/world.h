@@ -153,6 +153,9 @@ class World {
   void keepContactsForNextStep();
   void stepCollidingEachSubstep(double h);
   double surfaceTurnRate(const std::vector<ContactManifold>& contacts);
+  // The bodies at a part's start, to take it again (retakeTurningParts).
+  void savePartStart();
+  void restorePartStart();
 
   bool physicalInertiaOnly_ = true;
   struct Saved {
@@ -169,6 +172,7 @@ class World {
   std::vector<BodyId> freeBodies_;
   std::vector<JointId> freeJoints_;
   std::vector<Saved> saved_;
+  std::vector<Saved> partStart_;        // collision every sub-step: the bodies before a part
   std::vector<std::uint8_t> restored_;  // marks, while discardStepOf() runs
   std::vector<Shape> shapes_;
   std::vector<ContactManifold> contacts_;          // this step's

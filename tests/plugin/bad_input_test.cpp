@@ -156,6 +156,9 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   const dReal refreshTurn = dWorldGetBlockRefreshTurn(p.s.world);
   dWorldSetBlockRefreshTurn(p.s.world, -0.5);
   dWorldSetBlockRefreshTurn(p.s.world, std::nan(""));
+  const dReal impactDepth = dWorldGetBlockImpactDepth(p.s.world);
+  dWorldSetBlockImpactDepth(p.s.world, -0.001);
+  dWorldSetBlockImpactDepth(p.s.world, INFINITY);
   const int contactRows = dWorldGetBlockContactIslandRows(p.s.world);
   dWorldSetBlockContactIslandRows(p.s.world, -3);
   dWorldSetBlockContactIslandRows(p.s.world, 100000);
@@ -171,6 +174,15 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
       << err;
   EXPECT_NE(err.find("dWorldSetBlockRefreshTurn(nan): expected an angle >= 0"), std::string::npos)
       << err;
+  EXPECT_NE(err.find("dWorldSetBlockImpactDepth(-0.001): expected a depth >= 0"), std::string::npos)
+      << err;
+  EXPECT_NE(err.find("dWorldSetBlockImpactDepth(inf): expected a depth >= 0"), std::string::npos)
+      << err;
+  EXPECT_EQ(impactDepth, 0.001);  // the sub-stepped preset's
+  EXPECT_EQ(dWorldGetBlockImpactDepth(p.s.world), impactDepth);
+  EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 1);  // the sub-stepped preset's
+  dWorldSetBlockRetakeTurns(p.s.world, 0);
+  EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 0);
   EXPECT_EQ(refreshTurn, 0.001);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockRefreshTurn(p.s.world), refreshTurn);
   EXPECT_NE(err.find("dWorldSetBlockIterations(1000000000): expected 1 to 100000; call ignored"),

@@ -95,6 +95,21 @@ ODE_API int dWorldGetBlockLightBodyGroups(dWorldID w);
  * BLOCKSTEP_LOAD_RELATIVE_CONTACTS. */
 ODE_API void dWorldSetBlockLoadRelativeContacts(dWorldID w, int on);
 ODE_API int dWorldGetBlockLoadRelativeContacts(dWorldID w);
+/* With blockstep's own collision every sub-step, in an island too large
+ * to solve as one block, each fresh contact that would go more than this
+ * depth (m) deeper within the sub-step if nothing pushed it gets the
+ * contacts around it (on bodies no joint holds) solved as one exact
+ * group: a box landing on a column of boxes of like mass. 0: off; the
+ * default is the solver's own (1 mm sub-stepped, 0 for dWorldStep and
+ * the paper preset). BLOCKSTEP_IMPACT_DEPTH. */
+ODE_API void dWorldSetBlockImpactDepth(dWorldID w, dReal metres);
+ODE_API dReal dWorldGetBlockImpactDepth(dWorldID w);
+/* With blockstep's own collision every sub-step, a part whose solve spins
+ * a touching body past the turn per sub-step (dWorldSetBlockMaxTurn) is
+ * taken again from its start, shorter, once (1), or kept (0). The default
+ * is the solver's own (on sub-stepped). BLOCKSTEP_RETAKE_TURNS. */
+ODE_API void dWorldSetBlockRetakeTurns(dWorldID w, int on);
+ODE_API int dWorldGetBlockRetakeTurns(dWorldID w);
 /* Cut an island with more joint rows than that (a cloth, a lattice) into
  * chains of joints, each of at most that many rows and solved as one
  * exact block inside the sweeps (1), or keep one block per joint (0, the
