@@ -332,6 +332,16 @@ T heldOrSolvers(dWorldID w, std::optional<T> ode::BridgeSettings::*held,
   return value ? *value : currentSettings(w).*solverOwn;
 }
 
+// A world's on/off setting held apart from its solver (1 or 0 through the
+// C API); unset, the solver's own is reported.
+using FlagSetting = std::optional<bool> ode::BridgeSettings::*;
+void setWorldFlag(const char* call, dWorldID w, int on, FlagSetting setting) {
+  guarded(call, [&] { LockedWorld(w).settings().*setting = on != 0; });
+}
+int worldFlag(const char* call, dWorldID w, FlagSetting setting, bool SolverSettings::*solverOwn) {
+  return guarded(call, 0, [&] { return heldOrSolvers(w, setting, solverOwn) ? 1 : 0; });
+}
+
 void sayOnce(WorldState& state, dWorldID w, const std::string& text, const char* consequence) {
   for (const std::string& s : state.said) {
     if (s == text) return;
@@ -570,25 +580,18 @@ int dWorldGetBlockContactIslandRows(dWorldID w) {
   });
 }
 void dWorldSetBlockLightBodyGroups(dWorldID w, int on) {
-  guarded(__func__, [&] { LockedWorld(w).settings().lightBodyGroups = on != 0; });
+  setWorldFlag(__func__, w, on, &ode::BridgeSettings::lightBodyGroups);
 }
 int dWorldGetBlockLightBodyGroups(dWorldID w) {
-  return guarded(__func__, 0, [&] {
-    return heldOrSolvers(w, &ode::BridgeSettings::lightBodyGroups, &SolverSettings::lightBodyGroups)
-               ? 1
-               : 0;
-  });
+  return worldFlag(__func__, w, &ode::BridgeSettings::lightBodyGroups,
+                   &SolverSettings::lightBodyGroups);
 }
 void dWorldSetBlockLoadRelativeContacts(dWorldID w, int on) {
-  guarded(__func__, [&] { LockedWorld(w).settings().loadRelativeContacts = on != 0; });
+  setWorldFlag(__func__, w, on, &ode::BridgeSettings::loadRelativeContacts);
 }
 int dWorldGetBlockLoadRelativeContacts(dWorldID w) {
-  return guarded(__func__, 0, [&] {
-    return heldOrSolvers(w, &ode::BridgeSettings::loadRelativeContacts,
-                         &SolverSettings::loadRelativeContacts)
-               ? 1
-               : 0;
-  });
+  return worldFlag(__func__, w, &ode::BridgeSettings::loadRelativeContacts,
+                   &SolverSettings::loadRelativeContacts);
 }
 void dWorldSetBlockImpactDepth(dWorldID w, dReal metres) {
   if (!(metres >= 0.0) || !std::isfinite(metres)) {
@@ -603,24 +606,17 @@ dReal dWorldGetBlockImpactDepth(dWorldID w) {
   });
 }
 void dWorldSetBlockRetakeTurns(dWorldID w, int on) {
-  guarded(__func__, [&] { LockedWorld(w).settings().retakeTurningParts = on != 0; });
+  setWorldFlag(__func__, w, on, &ode::BridgeSettings::retakeTurningParts);
 }
 int dWorldGetBlockRetakeTurns(dWorldID w) {
-  return guarded(__func__, 0, [&] {
-    return heldOrSolvers(w, &ode::BridgeSettings::retakeTurningParts,
-                         &SolverSettings::retakeTurningParts)
-               ? 1
-               : 0;
-  });
+  return worldFlag(__func__, w, &ode::BridgeSettings::retakeTurningParts,
+                   &SolverSettings::retakeTurningParts);
 }
 void dWorldSetBlockChainBlocks(dWorldID w, int on) {
-  guarded(__func__, [&] { LockedWorld(w).settings().chainBlocks = on != 0; });
+  setWorldFlag(__func__, w, on, &ode::BridgeSettings::chainBlocks);
 }
 int dWorldGetBlockChainBlocks(dWorldID w) {
-  return guarded(__func__, 0, [&] {
-    return heldOrSolvers(w, &ode::BridgeSettings::chainBlocks, &SolverSettings::chainBlocks) ? 1
-                                                                                             : 0;
-  });
+  return worldFlag(__func__, w, &ode::BridgeSettings::chainBlocks, &SolverSettings::chainBlocks);
 }
 // A world's angle setting (rad, >= 0; 0: off) held apart from its solver:
 // a bad value is said and ignored; unset, the solver's own is reported.
