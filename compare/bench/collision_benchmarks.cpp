@@ -143,6 +143,11 @@ BENCHMARK_CAPTURE(
     kBox, kBall, -0.005);
 BENCHMARK_CAPTURE(pair, box_sphere_gjk, collideConvex, kBox, kBall, -0.005);
 BENCHMARK_CAPTURE(pair, box_capsule_gjk, collideConvex, kBox, kCapsule, -0.005);
+// Cap on cap, and a sphere on a cap: segments' closest points against GJK/EPA.
+BENCHMARK_CAPTURE(pair, capsule_capsule_fast, collideRoundSegments, kCapsule, kCapsule, -0.005);
+BENCHMARK_CAPTURE(pair, capsule_capsule_gjk, collideConvex, kCapsule, kCapsule, -0.005);
+BENCHMARK_CAPTURE(pair, sphere_capsule_fast, collideRoundSegments, kBall, kCapsule, -0.005);
+BENCHMARK_CAPTURE(pair, sphere_capsule_gjk, collideConvex, kBall, kCapsule, -0.005);
 
 }  // namespace
 

@@ -80,6 +80,8 @@ int collideShapes(const Shape& s1, const ShapePose& p1, const Shape& s2, const S
     return collideBoxSphere(*a, *pa, *b, *pb, margin, m);
   if (a->kind == K::Sphere && b->kind == K::Sphere)
     return collideSpheres(*a, *pa, *b, *pb, margin, m);
+  auto round = [](K k) { return k == K::Sphere || k == K::Capsule; };
+  if (round(a->kind) && round(b->kind)) return collideRoundSegments(*a, *pa, *b, *pb, margin, m);
   return collideConvex(*a, *pa, *b, *pb, margin, m);
 }
 

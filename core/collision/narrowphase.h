@@ -18,6 +18,10 @@ int collideSpheres(const Shape& a, const ShapePose& pa, const Shape& b, const Sh
                    double margin, ContactManifold& m);
 int collideBoxSphere(const Shape& box, const ShapePose& pb, const Shape& sphere,
                      const ShapePose& ps, double margin, ContactManifold& m);
+// Sphere or capsule against sphere or capsule: the closest points of the
+// two core segments, and each segment end within the margin of the other.
+int collideRoundSegments(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,
+                         double margin, ContactManifold& m);
 // Separating-axis test over the 15 axes; face contacts clip the incident
 // face against the reference face's sides (up to 8 points, reduced to 4),
 // edge contacts give the closest points of the two edges.

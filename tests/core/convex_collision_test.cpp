@@ -291,6 +291,129 @@ TEST(ConvexCollision, CapsuleOnABoxLiesOnTwoPointsOrTipsOnOne) {
   expectContact(m, 2, -0.02, Vec3::UnitZ());
 }
 
+// The distance between two segments by golden-section search over A's
+// parameter (the distance from a point of A to segment B is convex in it),
+// written apart from the collider's own closest-point routine.
+double segmentDistance(const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec3& b1) {
+  auto toB = [&](double s) {
+    const Vec3 p = a0 + s * (a1 - a0), d = b1 - b0;
+    const double t =
+        d.squaredNorm() > 0.0 ? std::clamp((p - b0).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+    return (b0 + t * d - p).norm();
+  };
+  double lo = 0.0, hi = 1.0;
+  const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int i = 0; i < 200; ++i) {
+    const double x1 = hi - ratio * (hi - lo), x2 = lo + ratio * (hi - lo);
+    (toB(x1) < toB(x2) ? hi : lo) = toB(x1) < toB(x2) ? x2 : x1;
+  }
+  return std::min({toB(0.5 * (lo + hi)), toB(0.0), toB(1.0)});
+}
+
+void coreSegment(const Shape& s, const ShapePose& p, Vec3& start, Vec3& end) {
+  const Vec3 half =
+      s.kind == Shape::Kind::Capsule ? Vec3(s.halfLength * p.rotation.col(2)) : Vec3::Zero();
+  start = p.position - half;
+  end = p.position + half;
+}
+
+TEST(ConvexCollision, CapsulesAndSpheresTouchAtTheirSegmentsClosestPoints) {
+  // 2,000 random pairs of a capsule with a capsule or a sphere, near
+  // touching: the deepest point is the segments' distance less the radii
+  // (to 1e-9 m), and GJK/EPA on the same pair agrees to 1e-6; every point
+  // has a unit normal from A toward B and lies within the margin; never
+  // more than four.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0), size(0.02, 0.15);
+  int compared = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Shape a = trial % 3 == 0 ? Shape::sphere(0, size(rng))
+                                   : Shape::capsule(0, size(rng), 4.0 * size(rng));
+    const Shape b = Shape::capsule(1, size(rng), 4.0 * size(rng));
+    const Vec3 axisA(unit(rng), unit(rng), unit(rng)), axisB(unit(rng), unit(rng), unit(rng));
+    const ShapePose pa = at(Vec3::Zero(), about(axisA, 3.0 * unit(rng)));
+    // B placed so that the cores come within the radii give or take 30 mm.
+    const Vec3 offset = Vec3(unit(rng), unit(rng), unit(rng)).normalized();
+    ShapePose pb = at(0.5 * (a.halfLength + b.halfLength) * offset, about(axisB, 3.0 * unit(rng)));
+    Vec3 a0, a1, b0, b1;
+    coreSegment(a, pa, a0, a1);
+    coreSegment(b, pb, b0, b1);
+    const double gap = segmentDistance(a0, a1, b0, b1) - a.radius - b.radius;
+    pb.position += (0.03 * unit(rng) - gap) * offset;
+    coreSegment(b, pb, b0, b1);
+    const double exact = segmentDistance(a0, a1, b0, b1) - a.radius - b.radius;
+    ContactManifold m;
+    const int n = collideRoundSegments(a, pa, b, pb, kMargin, m);
+    if (exact > kMargin) {
+      EXPECT_EQ(n, 0);
+      continue;
+    }
+    ASSERT_GE(n, 1);
+    ASSERT_LE(n, kMaxManifoldPoints);
+    EXPECT_NEAR(m.points[0].separation, exact, 1e-9) << "trial " << trial;
+    EXPECT_NEAR(deepest(m), exact, 1e-9) << "trial " << trial;
+    // Each point: midway between a point of A's surface over its core and
+    // one of B's, along its normal from A toward B.
+    for (int i = 0; i < n; ++i) {
+      const ContactPoint& p = m.points[i];
+      EXPECT_NEAR(p.normal.norm(), 1.0, 1e-9);
+      EXPECT_LE(p.separation, kMargin);
+      const Vec3 onA = p.position - (a.radius + 0.5 * p.separation) * p.normal;
+      const Vec3 onB = p.position + (b.radius + 0.5 * p.separation) * p.normal;
+      EXPECT_LT(segmentDistance(onA, onA, a0, a1), 1e-9) << "trial " << trial;
+      EXPECT_LT(segmentDistance(onB, onB, b0, b1), 1e-9) << "trial " << trial;
+    }
+    if (exact > -0.5 * std::min(a.radius, b.radius)) {
+      ContactManifold viaGjk;
+      ASSERT_GE(collideConvex(a, pa, b, pb, kMargin, viaGjk), 1);
+      EXPECT_NEAR(deepest(viaGjk), exact, 1e-6) << "trial " << trial;
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 500);
+}
+
+TEST(ConvexCollision, CapsulesAtASmallAngleHoldAtTheirEndsToo) {
+  // B along x; A 10 degrees off it, h above, crossing over B's centre.
+  // Besides the crossing, A's two ends are points of their own, each at
+  // its closed-form distance from B's segment: a pair touching at one
+  // point as it turned see-sawed about it. Crossed square, the ends are
+  // far: one point.
+  const double r = 0.05, halfLength = 0.2, h = 2 * r - 0.002, angle = 10.0 * kPi / 180.0;
+  const Shape a = Shape::capsule(0, r, 2 * halfLength), b = Shape::capsule(1, r, 2 * halfLength);
+  const Quat alongX = about(Vec3::UnitY(), kPi / 2);
+  const ShapePose pb = at(Vec3::Zero(), alongX);
+  const ShapePose pa = at(Vec3(0, 0, h), about(Vec3::UnitZ(), angle) * alongX);
+  ContactManifold m;
+  ASSERT_EQ(collideRoundSegments(a, pa, b, pb, 0.05, m), 3);
+  EXPECT_NEAR(m.points[0].separation, -0.002, 1e-12);
+  EXPECT_LT((m.normal - -Vec3::UnitZ()).norm(), 1e-12);
+  const double endSeparation =
+      std::hypot(halfLength * std::sin(angle), h) - 2 * r;  // 37.4 mm apart
+  for (int i = 1; i < 3; ++i) {
+    EXPECT_NEAR(m.points[i].separation, endSeparation, 1e-12);
+    EXPECT_NEAR(std::abs(m.points[i].position.x()), halfLength * std::cos(angle), 1e-12);
+  }
+  ASSERT_EQ(collideRoundSegments(a, at(Vec3(0, 0, h), about(Vec3::UnitZ(), kPi / 2) * alongX), b,
+                                 pb, 0.05, m),
+            1);
+  // Side by side, overlapping over 0.3 m: the overlap's two ends (and
+  // not A's end beyond B's, 40 mm apart).
+  ASSERT_EQ(collideRoundSegments(a, at(Vec3(0.1, 0, h), alongX), b, pb, kMargin, m), 2);
+  for (int i = 0; i < 2; ++i)
+    EXPECT_NEAR(m.points[i].separation, -0.002, 1e-12);
+  EXPECT_NEAR(std::abs(m.points[0].position.x() - m.points[1].position.x()), 0.3, 1e-12);
+  // A short fat capsule across a long one at 5 degrees: the crossing, both
+  // of its ends and both ends of the long one are within the margin. Four
+  // are kept, the crossing first; a fifth went past the manifold's room.
+  const Shape fat = Shape::capsule(0, 0.1, 0.4), shortFat = Shape::capsule(1, 0.1, 0.2);
+  ASSERT_EQ(collideRoundSegments(
+                fat, at(Vec3::Zero(), alongX), shortFat,
+                at(Vec3(0, 0, 0.19), about(Vec3::UnitZ(), 5.0 * kPi / 180.0) * alongX), kMargin, m),
+            4);
+  EXPECT_NEAR(m.points[0].separation, -0.01, 1e-12);
+}
+
 TEST(ConvexCollision, CylinderOnAPlaneStandsOnItsCapOrTouchesAtItsRim) {
   const double r = 0.3, length = 0.8;
   const Shape ground = Shape::plane(Vec3::UnitZ(), 0.0), cylinder = Shape::cylinder(1, r, length);
