@@ -211,6 +211,10 @@ void readEnvironment() {
       v && parseReal("BLOCKSTEP_IMPACT_DEPTH", v, x)) {
     s.impactDepth = x;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_SINKING_DEPTH");
+      v && parseReal("BLOCKSTEP_SINKING_DEPTH", v, x)) {
+    s.sinkingDepth = x;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_CHAIN_BLOCKS");
       v && parseInt("BLOCKSTEP_CHAIN_BLOCKS", v, 0, n, 1)) {
     s.chainBlocks = n != 0;
@@ -603,6 +607,19 @@ void dWorldSetBlockImpactDepth(dWorldID w, dReal metres) {
 dReal dWorldGetBlockImpactDepth(dWorldID w) {
   return guarded(__func__, dReal(0), [&] {
     return dReal(heldOrSolvers(w, &ode::BridgeSettings::impactDepth, &SolverSettings::impactDepth));
+  });
+}
+void dWorldSetBlockSinkingDepth(dWorldID w, dReal metres) {
+  if (!(metres >= 0.0) || !std::isfinite(metres)) {
+    say("%s(%g): expected a depth >= 0 (m; 0: off); call ignored", __func__, double(metres));
+    return;
+  }
+  guarded(__func__, [&] { LockedWorld(w).settings().sinkingDepth = metres; });
+}
+dReal dWorldGetBlockSinkingDepth(dWorldID w) {
+  return guarded(__func__, dReal(0), [&] {
+    return dReal(
+        heldOrSolvers(w, &ode::BridgeSettings::sinkingDepth, &SolverSettings::sinkingDepth));
   });
 }
 void dWorldSetBlockRetakeTurns(dWorldID w, int on) {

@@ -100,6 +100,7 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   if (settings_.lightBodyGroups) s.lightBodyGroups = *settings_.lightBodyGroups;
   if (settings_.loadRelativeContacts) s.loadRelativeContacts = *settings_.loadRelativeContacts;
   if (settings_.impactDepth) s.impactDepth = *settings_.impactDepth;
+  if (settings_.sinkingDepth) s.sinkingDepth = *settings_.sinkingDepth;
   if (settings_.retakeTurningParts) s.retakeTurningParts = *settings_.retakeTurningParts;
   if (settings_.maxTurnPerSubstep) s.maxTurnPerSubstep = *settings_.maxTurnPerSubstep;
   if (settings_.maxTurnPerRefresh) s.maxTurnPerRefresh = *settings_.maxTurnPerRefresh;

@@ -72,6 +72,10 @@ struct BridgeSettings {
   // fresh contact as one exact group (SolverSettings::impactDepth, m;
   // unset: the solver's own).
   std::optional<double> impactDepth;
+  // In larger contact islands, the manifolds around each contact still
+  // sinking after the sweeps as one exact group (SolverSettings::
+  // sinkingDepth, m; unset: the solver's own).
+  std::optional<double> sinkingDepth;
   // Colliding every sub-step, a part that spins a touching body past the
   // turn per sub-step is taken again, shorter
   // (SolverSettings::retakeTurningParts; unset: the solver's own).

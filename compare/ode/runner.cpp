@@ -84,6 +84,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.lightGroups) dWorldSetBlockLightBodyGroups(w, *o.lightGroups ? 1 : 0);
   if (o.loadContacts) dWorldSetBlockLoadRelativeContacts(w, *o.loadContacts ? 1 : 0);
   if (o.impactDepth) dWorldSetBlockImpactDepth(w, *o.impactDepth);
+  if (o.sinkingDepth) dWorldSetBlockSinkingDepth(w, *o.sinkingDepth);
   if (o.retakeTurns) dWorldSetBlockRetakeTurns(w, *o.retakeTurns ? 1 : 0);
   if (o.contactRows) dWorldSetBlockContactIslandRows(w, *o.contactRows);
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
@@ -310,6 +311,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.loadContacts = flag(text, key, value);
   } else if (key == "impact_depth") {
     o.impactDepth = decimal(text, key, value, 0.0, 1.0);
+  } else if (key == "sinking_depth") {
+    o.sinkingDepth = decimal(text, key, value, 0.0, 1.0);
   } else if (key == "retake") {
     o.retakeTurns = flag(text, key, value);
   } else if (key == "contact_rows") {
@@ -362,6 +365,9 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"impact_depth",
            "blockstep: colliding every sub-step, contacts closing more than this a sub-step, m, "
            "solved with their neighbours as exact groups, 0: off"},
+          {"sinking_depth",
+           "blockstep: colliding every sub-step, contacts still sinking more than this a "
+           "sub-step after the sweeps, m, solved with their neighbours as exact groups, 0: off"},
           {"retake",
            "blockstep: colliding every sub-step, a part that spins a touching body past max_turn "
            "taken again shorter, 0 or 1"},

@@ -203,7 +203,7 @@ void ContactIslands::markJointBodies(int island, const std::vector<ConstraintBlo
 
 void ContactIslands::addImpacts(int island, const std::vector<ConstraintBlock>& blocks,
                                 const std::vector<std::int32_t>& islandStart,
-                                std::int32_t staticBody, int maxRows) {
+                                std::int32_t staticBody, int maxRows, bool late) {
   const std::int32_t first = islandStart[island];
   const std::int32_t count = islandStart[island + 1] - first;
   for (std::int32_t start = 0; start < count; ++start) {
@@ -244,13 +244,13 @@ void ContactIslands::addImpacts(int island, const std::vector<ConstraintBlock>& 
       taken_[start] = 0;
       continue;
     }
-    appendGroup(blocks, first, members_);
-    groups_.back().impact = true;
+    appendGroup(blocks, first, members_, late);
+    groups_.back().impact = !late;
   }
 }
 
 void ContactIslands::appendGroup(const std::vector<ConstraintBlock>& blocks, std::int32_t first,
-                                 const std::vector<std::int32_t>& members) {
+                                 const std::vector<std::int32_t>& members, bool late) {
   Group g;
   g.firstEntry = static_cast<std::int32_t>(entryRow_.size());
   if (!groups_.empty()) {
@@ -259,7 +259,7 @@ void ContactIslands::appendGroup(const std::vector<ConstraintBlock>& blocks, std
   }
   for (const std::int32_t k : members) {
     const ConstraintBlock& blk = blocks[first + k];
-    groupOfBlock_[first + k] = static_cast<std::int32_t>(groups_.size());
+    if (!late) groupOfBlock_[first + k] = static_cast<std::int32_t>(groups_.size());
     for (int i = 0; i < blk.equality; ++i) {
       entryRow_.push_back(blk.firstRow + i);
       entryBlock_.push_back(first + k);
@@ -269,9 +269,7 @@ void ContactIslands::appendGroup(const std::vector<ConstraintBlock>& blocks, std
   groups_.push_back(g);
 }
 
-void ContactIslands::prepare(const std::vector<ConstraintBlock>& blocks,
-                             const std::vector<ConstraintRow>& rows,
-                             const std::vector<SolverBody>& bodies) {
+void ContactIslands::reserveStorage() {
   if (groups_.empty()) return;
   const Group& last = groups_.back();
   const std::size_t storage = last.matrix + 3 * static_cast<std::size_t>(last.size) * last.size;
@@ -286,30 +284,42 @@ void ContactIslands::prepare(const std::vector<ConstraintBlock>& blocks,
     nullBegin_.resize(entryRow_.size());
     nullEnd_.resize(entryRow_.size());
   }
+}
+
+void ContactIslands::prepareGroup(Group& g, const std::vector<ConstraintBlock>& blocks,
+                                  const std::vector<ConstraintRow>& rows,
+                                  const std::vector<SolverBody>& bodies) {
+  const int n = g.size;
+  const std::int32_t* rowOf = &entryRow_[g.firstEntry];
+  const std::int32_t* blockOf = &entryBlock_[g.firstEntry];
+  double* K = kOf(g);  // full, K[i n + j]
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j <= i; ++j) {
+      K[i * n + j] = K[j * n + i] = rowCoupling(rows[rowOf[i]], blocks[blockOf[i]], rows[rowOf[j]],
+                                                blocks[blockOf[j]], bodies);
+    }
+  }
+  // The points touching (C holds the rest depth) push; those apart join
+  // when they would close.
+  std::uint8_t* active = &active_[g.firstEntry];
+  std::int32_t* list = &activeList_[g.firstEntry];
+  g.activeCount = 0;
+  for (int i = 0; i < n; ++i) {
+    active[i] = rows[rowOf[i]].C <= kRestDepth;
+    if (active[i]) list[g.activeCount++] = i;
+  }
+  g.factorStale = true;
+}
+
+void ContactIslands::prepare(const std::vector<ConstraintBlock>& blocks,
+                             const std::vector<ConstraintRow>& rows,
+                             const std::vector<SolverBody>& bodies) {
+  reserveStorage();
   for (Group& g : groups_) {
-    const int n = g.size;
-    const std::int32_t* rowOf = &entryRow_[g.firstEntry];
-    const std::int32_t* blockOf = &entryBlock_[g.firstEntry];
-    double* K = kOf(g);  // full, K[i n + j]
-    for (int i = 0; i < n; ++i) {
-      for (int j = 0; j <= i; ++j) {
-        K[i * n + j] = K[j * n + i] = rowCoupling(rows[rowOf[i]], blocks[blockOf[i]],
-                                                  rows[rowOf[j]], blocks[blockOf[j]], bodies);
-      }
-    }
-    // The points touching (C holds the rest depth) push; those apart join
-    // when they would close.
-    std::uint8_t* active = &active_[g.firstEntry];
-    std::int32_t* list = &activeList_[g.firstEntry];
-    g.activeCount = 0;
-    for (int i = 0; i < n; ++i) {
-      active[i] = rows[rowOf[i]].C <= kRestDepth;
-      if (active[i]) list[g.activeCount++] = i;
-    }
-    g.factorStale = true;
+    prepareGroup(g, blocks, rows, bodies);
     if (g.impact) {
-      for (int i = 0; i < n; ++i)
-        warmImpulse_[g.firstEntry + i] = rows[rowOf[i]].impulse;
+      for (std::int32_t e = g.firstEntry; e < g.firstEntry + g.size; ++e)
+        warmImpulse_[e] = rows[entryRow_[e]].impulse;
     }
   }
 }

@@ -132,6 +132,10 @@ class Solver {
   double blockSpringShare(const SolverSettings& s, double h, const ConstraintBlock& blk,
                           bool inIslandBlock, SoftnessCache& cache) const;
   void selectContactIslands(const StepInput& in, const SolverSettings& s, double h);
+  bool groupableContact(const StepInput& in, const ConstraintBlock& blk) const;
+  bool closesPast(const ConstraintBlock& blk, double h, double depth) const;
+  void solveSinkingContacts(const StepInput& in, const SolverSettings& s, double h,
+                            StepStats& stats);
   bool carriesLoadThroughJoint(const SolverSettings& s, const ConstraintBlock& blk) const;
   void finishBlock(const SolverSettings& s, double h, ConstraintBlock& blk, bool inIslandBlock,
                    bool inGroup, bool islandSolvesAll);

@@ -423,6 +423,8 @@ void World::validateSettings(const SolverSettings& s) const {
     throw Error("the turn per sub-step must be >= 0 and finite (0: a fixed sub-step count)");
   if (!(s.impactDepth >= 0.0) || !std::isfinite(s.impactDepth))
     throw Error("the impact depth must be >= 0 and finite (0: no impact groups)");
+  if (!(s.sinkingDepth >= 0.0) || !std::isfinite(s.sinkingDepth))
+    throw Error("the sinking depth must be >= 0 and finite (0: no sinking groups)");
   if (s.threads < 0 || s.threads > SolverSettings::kMaxThreads)
     throw Error("threads must be in [0, " + std::to_string(SolverSettings::kMaxThreads) +
                 "] (0: one per core)");
@@ -543,6 +545,7 @@ void World::stepCollidingEachSubstep(double h) {
   stats_.runawayBodies.clear();
   stats_.runawayJoints.clear();
   stats_.retakenParts = 0;
+  stats_.sinkingGroups = 0;
   heldTypes_.clear();
   double done = 0.0;
   double longest = nominal / Solver::substepsAt(part, nominal, surfaceTurnRate(previousContacts_));
@@ -588,6 +591,7 @@ void World::stepCollidingEachSubstep(double h) {
     longest = nominal / Solver::substepsAt(part, nominal, turnRate);
 
     stats_.iterations += partStats_.iterations;
+    stats_.sinkingGroups += partStats_.sinkingGroups;
     stats_.islands = partStats_.islands;
     stats_.blocks = partStats_.blocks;
     stats_.rows = partStats_.rows;

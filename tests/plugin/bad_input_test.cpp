@@ -159,6 +159,9 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   const dReal impactDepth = dWorldGetBlockImpactDepth(p.s.world);
   dWorldSetBlockImpactDepth(p.s.world, -0.001);
   dWorldSetBlockImpactDepth(p.s.world, INFINITY);
+  const dReal sinkingDepth = dWorldGetBlockSinkingDepth(p.s.world);
+  dWorldSetBlockSinkingDepth(p.s.world, -0.001);
+  dWorldSetBlockSinkingDepth(p.s.world, std::nan(""));
   const int contactRows = dWorldGetBlockContactIslandRows(p.s.world);
   dWorldSetBlockContactIslandRows(p.s.world, -3);
   dWorldSetBlockContactIslandRows(p.s.world, 100000);
@@ -180,6 +183,13 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
       << err;
   EXPECT_EQ(impactDepth, 0.001);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockImpactDepth(p.s.world), impactDepth);
+  EXPECT_NE(err.find("dWorldSetBlockSinkingDepth(-0.001): expected a depth >= 0"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find("dWorldSetBlockSinkingDepth(nan): expected a depth >= 0"), std::string::npos)
+      << err;
+  EXPECT_EQ(sinkingDepth, 0.00025);  // the sub-stepped preset's
+  EXPECT_EQ(dWorldGetBlockSinkingDepth(p.s.world), sinkingDepth);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 1);  // the sub-stepped preset's
   dWorldSetBlockRetakeTurns(p.s.world, 0);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 0);

@@ -104,6 +104,15 @@ ODE_API int dWorldGetBlockLoadRelativeContacts(dWorldID w);
  * the paper preset). BLOCKSTEP_IMPACT_DEPTH. */
 ODE_API void dWorldSetBlockImpactDepth(dWorldID w, dReal metres);
 ODE_API dReal dWorldGetBlockImpactDepth(dWorldID w);
+/* With blockstep's own collision every sub-step, in an island too large
+ * to solve as one block, each fresh contact that would still go more than
+ * this depth (m) deeper within the sub-step after the solver's sweeps gets
+ * the contacts around it solved once more as one exact group, which stops
+ * it sinking: a light body under a heavy load landing on it. 0: off; the
+ * default is the solver's own (0.25 mm sub-stepped, 0 for dWorldStep and
+ * the paper preset). BLOCKSTEP_SINKING_DEPTH. */
+ODE_API void dWorldSetBlockSinkingDepth(dWorldID w, dReal metres);
+ODE_API dReal dWorldGetBlockSinkingDepth(dWorldID w);
 /* With blockstep's own collision every sub-step, a part whose solve spins
  * a touching body past the turn per sub-step (dWorldSetBlockMaxTurn) is
  * taken again from its start, shorter, once (1), or kept (0). The default
