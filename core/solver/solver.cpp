@@ -854,8 +854,8 @@ bool Solver::closesPast(const ConstraintBlock& blk, double h, double depth) cons
   return false;
 }
 
-// After the sweeps, the contacts still closing past the sinking depth get
-// one exact solve with the manifolds around them
+// After the sweeps, the contacts still closing past the sinking depth are
+// solved again, exactly, with the manifolds around them
 // (SolverSettings::sinkingDepth, ContactIslands::solveSinking).
 void Solver::solveSinkingContacts(const StepInput& in, const SolverSettings& s, double h,
                                   StepStats& stats) {
