@@ -440,6 +440,15 @@ double deepestContact(const World& world) {
   return deepest;
 }
 
+// The world's settings, its own collision every sub-step, contacts with
+// the drop-in's spring (omega h = 0.4 a sub-step), and the ground.
+void collidingEverySubstepOnSprings(World& world, const SolverSettings& settings) {
+  world.setSettings(settings);
+  world.collisionSettings().everySubstep = true;
+  world.collisionSettings().surface.softness = Softness::stepSpring(0.4, 2.0);
+  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+}
+
 // A contact on a body a joint holds gives under the load it carries no
 // more than under its own weight (SolverSettings::loadRelativeContacts).
 // A 0.1 kg foot glued under a 10 kg block rests on the ground; its
@@ -453,11 +462,8 @@ double footUnderABlock(bool loadRelative) {
   World world;
   SolverSettings settings = SolverSettings::subStepped(10);
   settings.loadRelativeContacts = loadRelative;
-  world.setSettings(settings);
-  world.collisionSettings().everySubstep = true;
-  world.collisionSettings().surface.softness = Softness::stepSpring(0.4, 2.0);
+  collidingEverySubstepOnSprings(world, settings);
   world.collisionSettings().surface.slop = 0.0;
-  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
   const Vec3 footHalf(0.05, 0.05, 0.05), blockHalf(0.1, 0.1, 0.1);
   const BodyId foot =
       world.createBody(test::boxBody(Vec3(0, 0, footHalf.z()), 0.1, 2.0 * footHalf));
@@ -513,10 +519,7 @@ AfterLanding afterALanding(double impactDepth) {
   settings.contactIslandRows = 16;
   settings.impactDepth = impactDepth;
   settings.sinkingDepth = 0.0;  // the impact groups alone (sinking groups stop the column too)
-  world.setSettings(settings);
-  world.collisionSettings().everySubstep = true;
-  world.collisionSettings().surface.softness = Softness::stepSpring(0.4, 2.0);
-  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  collidingEverySubstepOnSprings(world, settings);
   const Vec3 plankHalf(1.0, 0.1, 0.05), half(0.1, 0.1, 0.1);
   std::vector<BodyId> column{
       world.createBody(test::boxBody(Vec3(0, 0, plankHalf.z()), 30.0, 2.0 * plankHalf))};
@@ -583,10 +586,7 @@ UnderALoad underALandingLoad(double sinkingDepth) {
   settings.contactIslandRows = 16;
   settings.impactDepth = 0.0;
   settings.sinkingDepth = sinkingDepth;
-  world.setSettings(settings);
-  world.collisionSettings().everySubstep = true;
-  world.collisionSettings().surface.softness = Softness::stepSpring(0.4, 2.0);
-  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  collidingEverySubstepOnSprings(world, settings);
   const Vec3 lightHalf(0.06, 0.06, 0.05), half(0.1, 0.1, 0.1);
   const BodyId light =
       world.createBody(test::boxBody(Vec3(0, 0, lightHalf.z()), 0.73, 2.0 * lightHalf));
