@@ -4,6 +4,7 @@
 
 #include "compare/native/scenes.h"
 #include "support/allocation_counter.h"
+#include "support/landing_load.h"
 #include "support/test_world.h"
 #include "support/two_islands.h"
 
@@ -88,6 +89,31 @@ TEST(NoAllocation, LightBodyGroupsAllocateNothingAfterWarmUp) {
     world.step(1.0 / 60.0);
   EXPECT_EQ(test::allocationCount() - before, 0);
   EXPECT_NEAR(world.body(plank).position.z(), 0.525, 1e-4);  // the group held it
+}
+
+// Sinking groups (SolverSettings::sinkingDepth) are formed after the
+// sweeps wherever a contact still sinks, so their storage grows to the
+// largest seen: a landing seen once allocates nothing when it comes again.
+// 12 kg lands on a light box in an island over the contact island limit,
+// without impact groups, so the sinking groups do the holding.
+TEST(NoAllocation, SinkingGroupsAllocateNothingWhenALandingComesAgain) {
+  World world;
+  SolverSettings s = SolverSettings::subStepped(10);
+  s.contactIslandRows = 16;
+  s.impactDepth = 0.0;
+  test::collidingEverySubstepOnSprings(world, s);
+  const test::LandingOnALightBox landing = test::landingOnALightBox(world);
+  for (int i = 0; i < 30; ++i)
+    world.step(1.0 / 60.0);
+  test::placeLanding(world, landing);
+  const long before = test::allocationCount();
+  int sinkingGroups = 0;
+  for (int i = 0; i < 30; ++i) {
+    world.step(1.0 / 60.0);
+    sinkingGroups += world.lastStepStats().sinkingGroups;
+  }
+  EXPECT_EQ(test::allocationCount() - before, 0);
+  EXPECT_GT(sinkingGroups, 0) << "the landing again was held by sinking groups";
 }
 
 TEST(NoAllocation, TheCounterSeesAllocations) {

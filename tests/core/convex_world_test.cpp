@@ -8,6 +8,7 @@
 #include "core/collision/broadphase.h"
 #include "core/collision/narrowphase.h"
 #include "core/collision/support.h"
+#include "support/landing_load.h"
 #include "support/test_world.h"
 
 namespace blockstep {
@@ -440,15 +441,6 @@ double deepestContact(const World& world) {
   return deepest;
 }
 
-// The world's settings, its own collision every sub-step, contacts with
-// the drop-in's spring (omega h = 0.4 a sub-step), and the ground.
-void collidingEverySubstepOnSprings(World& world, const SolverSettings& settings) {
-  world.setSettings(settings);
-  world.collisionSettings().everySubstep = true;
-  world.collisionSettings().surface.softness = Softness::stepSpring(0.4, 2.0);
-  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
-}
-
 // A contact on a body a joint holds gives under the load it carries no
 // more than under its own weight (SolverSettings::loadRelativeContacts).
 // A 0.1 kg foot glued under a 10 kg block rests on the ground; its
@@ -462,7 +454,7 @@ double footUnderABlock(bool loadRelative) {
   World world;
   SolverSettings settings = SolverSettings::subStepped(10);
   settings.loadRelativeContacts = loadRelative;
-  collidingEverySubstepOnSprings(world, settings);
+  test::collidingEverySubstepOnSprings(world, settings);
   world.collisionSettings().surface.slop = 0.0;
   const Vec3 footHalf(0.05, 0.05, 0.05), blockHalf(0.1, 0.1, 0.1);
   const BodyId foot =
@@ -519,7 +511,7 @@ AfterLanding afterALanding(double impactDepth) {
   settings.contactIslandRows = 16;
   settings.impactDepth = impactDepth;
   settings.sinkingDepth = 0.0;  // the impact groups alone (sinking groups stop the column too)
-  collidingEverySubstepOnSprings(world, settings);
+  test::collidingEverySubstepOnSprings(world, settings);
   const Vec3 plankHalf(1.0, 0.1, 0.05), half(0.1, 0.1, 0.1);
   std::vector<BodyId> column{
       world.createBody(test::boxBody(Vec3(0, 0, plankHalf.z()), 30.0, 2.0 * plankHalf))};
@@ -586,20 +578,8 @@ UnderALoad underALandingLoad(double sinkingDepth) {
   settings.contactIslandRows = 16;
   settings.impactDepth = 0.0;
   settings.sinkingDepth = sinkingDepth;
-  collidingEverySubstepOnSprings(world, settings);
-  const Vec3 lightHalf(0.06, 0.06, 0.05), half(0.1, 0.1, 0.1);
-  const BodyId light =
-      world.createBody(test::boxBody(Vec3(0, 0, lightHalf.z()), 0.73, 2.0 * lightHalf));
-  world.addShape(Shape::box(light, lightHalf));
-  const BodyId side = world.createBody(
-      test::boxBody(Vec3(2 * lightHalf.x() + 0.001, 0, lightHalf.z()), 0.5, 2.0 * lightHalf));
-  world.addShape(Shape::box(side, lightHalf));
-  const double gap = 0.002, base = 2 * lightHalf.z() + gap;
-  for (const auto& [z, mass] : {std::pair{base + half.z(), 2.0}, {base + 3 * half.z(), 10.0}}) {
-    BodyDesc box = test::boxBody(Vec3(0.01, 0, z), mass, 2.0 * half);
-    box.linearVelocity = Vec3(0, 0, -2.2);
-    world.addShape(Shape::box(world.createBody(box), half));
-  }
+  test::collidingEverySubstepOnSprings(world, settings);
+  const BodyId light = test::landingOnALightBox(world).light;
   UnderALoad run;
   for (int frame = 0; frame < 30; ++frame) {
     world.step(1.0 / 60.0);
