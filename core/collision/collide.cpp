@@ -18,19 +18,20 @@ ShapePose poseOf(const Shape& s, const std::vector<Body>& bodies) {
                    (b.orientation * s.localOrientation).toRotationMatrix()};
 }
 
-// How far the shape may move before the next collision, plus half the
-// resting margin, within the margin (CollisionSettings::margin).
-double reachOf(const Shape& s, const ShapePose& pose, const std::vector<Body>& bodies,
-               const CollisionSettings& settings, double h) {
-  const double most = settings.margin;
-  const double least = std::max(0.0, std::min(most, 0.5 * settings.restingMargin));
-  if (s.body == kWorldBody) return least;  // planes and static world shapes do not move
-  const Body& b = bodies[s.body];
-  // The shape's farthest point from the body's centre.
+double leastReach(const CollisionSettings& settings) {
+  return std::max(0.0, std::min(settings.margin, 0.5 * settings.restingMargin));
+}
+
+// The shape's farthest point from its body's centre.
+double farthestOf(const Shape& s, const ShapePose& pose) {
   const PosedConvex convex(s, pose);
-  const double farthest = s.localPosition.norm() + convex.coreRadius() + convex.radius;
-  const double motion = (b.linearVelocity.norm() + b.angularVelocity.norm() * farthest) * h;
-  return std::isfinite(motion) ? std::min(most, least + motion) : most;
+  return s.localPosition.norm() + convex.coreRadius() + convex.radius;
+}
+
+// How fast a point of the shape can move: its body's speed plus its turn
+// rate times the shape's farthest point.
+double surfaceSpeed(const Body& b, double farthest) {
+  return b.linearVelocity.norm() + b.angularVelocity.norm() * farthest;
 }
 
 }  // namespace
@@ -91,13 +92,28 @@ void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>
   poses_.resize(shapes.size());
   boxes_.resize(shapes.size());
   reach_.resize(shapes.size());
+  farthest_.resize(shapes.size());
+  const bool solvedSpeeds = solvedSpeed_.size() == shapes.size();
+  const double most = settings.margin, least = leastReach(settings);
+  // Each shape reaches as far as it may move before the next collision
+  // (at the larger of its speed now and the one a retaken part's first
+  // solve gave it), plus half the resting margin, within the margin.
   for (std::size_t i = 0; i < shapes.size(); ++i) {
-    if (shapes[i].alive) {
-      poses_[i] = poseOf(shapes[i], bodies);
-      reach_[i] = reachOf(shapes[i], poses_[i], bodies, settings, h);
+    const Shape& s = shapes[i];
+    if (s.alive) {
+      poses_[i] = poseOf(s, bodies);
+      farthest_[i] = farthestOf(s, poses_[i]);
+      reach_[i] = least;  // planes and static world shapes do not move
+      if (s.body != kWorldBody) {
+        double speed = surfaceSpeed(bodies[s.body], farthest_[i]);
+        if (solvedSpeeds) speed = std::max(speed, solvedSpeed_[i]);
+        const double motion = speed * h;
+        reach_[i] = std::isfinite(motion) ? std::min(most, least + motion) : most;
+      }
     }
-    boxes_[i] = shapeAabb(shapes[i], poses_[i], reach_[i]);
+    boxes_[i] = shapeAabb(s, poses_[i], reach_[i]);
   }
+  solvedSpeed_.clear();
   broadPhase_.findPairs(boxes_, settings.broadPhase, pairs_);
   auto movable = [&](BodyId id) { return id != kWorldBody && bodies[id].type != BodyType::Static; };
   for (const auto& [i, j] : pairs_) {
@@ -151,6 +167,23 @@ void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>
     }
     out.push_back(m);
   }
+}
+
+bool Collider::outranReach(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
+                           const CollisionSettings& settings, double h) {
+  if (reach_.size() != shapes.size()) return false;  // not collided yet
+  solvedSpeed_.assign(shapes.size(), 0.0);
+  bool outran = false;
+  for (std::size_t i = 0; i < shapes.size(); ++i) {
+    const Shape& s = shapes[i];
+    if (!s.alive || s.body == kWorldBody) continue;
+    const Body& b = bodies[s.body];
+    if (!b.isDynamic()) continue;
+    solvedSpeed_[i] = surfaceSpeed(b, farthest_[i]);
+    // A reach at the margin already reaches as far as any part does.
+    outran |= reach_[i] < settings.margin && solvedSpeed_[i] * h > reach_[i];
+  }
+  return outran;
 }
 
 }  // namespace blockstep

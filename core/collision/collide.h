@@ -77,10 +77,19 @@ class Collider {
   void collide(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
                const CollisionSettings& settings, const std::vector<std::uint64_t>& jointed,
                double h, std::vector<ContactManifold>& out);
+  // After a solve over the h seconds of the last collide: whether a shape
+  // moved farther than that collide's reach for it (its contacts did not
+  // cover its path: a body the solve struck or spun up can go into one it
+  // had no contact with). The next collide only reaches at least as far
+  // as the speeds now (for the part taken again).
+  bool outranReach(const std::vector<Shape>& shapes, const std::vector<Body>& bodies,
+                   const CollisionSettings& settings, double h);
 
  private:
   std::vector<ShapePose> poses_;
   std::vector<double> reach_;
+  std::vector<double> farthest_;     // each shape's farthest point from its body's centre
+  std::vector<double> solvedSpeed_;  // outranReach's speeds, for the next collide only
   std::vector<Aabb> boxes_;
   std::vector<std::pair<int, int>> pairs_;
   BroadPhase broadPhase_;

@@ -527,7 +527,11 @@ void World::keepContactsForNextStep() {
 // that turn is taken again from its start, shorter, once
 // (SolverSettings::retakeTurningParts): its contacts were linearized
 // where the body was, and it turned through what it touches within that
-// very part. Contacts the caller added (addContact) hold for
+// very part. So is a part (at its length) whose solve sent a shape
+// farther than its collision reached (Collider::outranReach): a body
+// struck or spun up went into one it had no contact with; taken again,
+// each shape reaches as far as its solved speed carries it, so those
+// contacts come in speculatively. Contacts the caller added (addContact) hold for
 // every part; forces act on every part; contacts push out of penetration
 // no faster than over the whole step (Solver::penetrationRate). An island
 // the guard catches in one part is put back as it was before the whole
@@ -575,9 +579,13 @@ void World::stepCollidingEachSubstep(double h) {
     stats_.solveSeconds += partStats_.solveSeconds;
     stats_.stepSeconds += partStats_.stepSeconds;
     const double turnRate = surfaceTurnRate(contacts_);
-    if (settings_.retakeTurningParts && !retaken && hp > shortest * (1.0 + 1e-9) &&
-        turnRate * hp > settings_.maxTurnPerSubstep && partStats_.runaways.empty() &&
-        partStats_.brokenJoints.empty()) {
+    const bool mayRetake = settings_.retakeTurningParts && !retaken &&
+                           partStats_.runaways.empty() && partStats_.brokenJoints.empty();
+    const bool turnedPast =
+        hp > shortest * (1.0 + 1e-9) && turnRate * hp > settings_.maxTurnPerSubstep;
+    // Called first: it keeps the solved speeds for the retaken part's reach.
+    const bool outran = mayRetake && collider_.outranReach(shapes_, bodies_, collision_, hp);
+    if (mayRetake && (turnedPast || outran)) {
       restorePartStart();
       retaken = true;
       ++stats_.retakenParts;

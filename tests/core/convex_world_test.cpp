@@ -649,5 +649,58 @@ TEST(ConvexWorld, APartThatSpinsATouchingBodyUpIsTakenAgainShorter) {
   EXPECT_GT(retaken.retaken, 0);
   EXPECT_LT(retaken.deepest, 0.001);
 }
+// A 10 kg ball at 12 m/s strikes a 0.1 kg ball 8 mm short of a third,
+// in the first 1/600 s part of a step: the light ball leaves the strike at 11.9 m/s and
+// goes 20 mm in the part, farther than it reached when the part collided
+// (half the resting margin: it stood still). Returns the gap left between
+// the light ball and the third after each of the first two steps, and the
+// parts taken again.
+struct Struck {
+  double gapAfterStrike = 0.0, gapAfterNext = 0.0;
+  int retaken = 0;
+};
+Struck ballStruckTowardAnother(bool retake) {
+  World world;
+  SolverSettings settings = SolverSettings::subStepped(2);
+  settings.retakeTurningParts = retake;
+  world.setSettings(settings);
+  world.setGravity(Vec3::Zero());
+  world.collisionSettings().everySubstep = true;
+  const double big = 0.1, small = 0.05, gap = 0.008;
+  BodyDesc striker = test::sphereBody(Vec3(-big - small - 0.001, 0, 0), 10.0, big);
+  striker.linearVelocity = Vec3(12.0, 0, 0);
+  world.addShape(Shape::sphere(world.createBody(striker), big));
+  const BodyId light = world.createBody(test::sphereBody(Vec3::Zero(), 0.1, small));
+  world.addShape(Shape::sphere(light, small));
+  const BodyId third = world.createBody(test::sphereBody(Vec3(2 * small + gap, 0, 0), 1.0, small));
+  world.addShape(Shape::sphere(third, small));
+  auto gapNow = [&] {
+    return (world.body(third).position - world.body(light).position).norm() - 2 * small;
+  };
+  Struck run;
+  world.step(1.0 / 300.0);
+  run.gapAfterStrike = gapNow();
+  run.retaken += world.lastStepStats().retakenParts;
+  world.step(1.0 / 300.0);
+  run.gapAfterNext = gapNow();
+  run.retaken += world.lastStepStats().retakenParts;
+  return run;
+}
+
+TEST(ConvexWorld, APartWhoseSolveSendsABodyPastItsReachIsTakenAgainReachingFarther) {
+  const Struck kept = ballStruckTowardAnother(false);
+  const Struck retaken = ballStruckTowardAnother(true);
+  std::printf(
+      "  light ball struck toward another 8 mm away: gap after the strike %.2f mm (part kept), "
+      "%.2f mm (%d taken again)\n",
+      kept.gapAfterStrike * 1e3, retaken.gapAfterStrike * 1e3, retaken.retaken);
+  EXPECT_EQ(kept.retaken, 0);
+  EXPECT_LT(kept.gapAfterStrike, -0.008);  // 20 mm travelled into an 8 mm gap
+  EXPECT_EQ(retaken.retaken, 1);
+  // Taken again, the light ball's contact with the third came in ahead of
+  // it: it stops at the third, and the next part finds nothing to take again.
+  EXPECT_GT(retaken.gapAfterStrike, -0.0005);
+  EXPECT_GT(retaken.gapAfterNext, -0.0005);
+}
 }  // namespace
 }  // namespace blockstep
