@@ -370,7 +370,8 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
            "sub-step after the sweeps, m, solved with their neighbours as exact groups, 0: off"},
           {"retake",
            "blockstep: colliding every sub-step, a part that spins a touching body past max_turn "
-           "taken again shorter, 0 or 1"},
+           "taken again shorter, or that sends a body past its reach taken again reaching "
+           "farther, 0 or 1"},
           {"max_turn", "blockstep: more sub-steps past this turn per sub-step, rad, 0: off"},
           {"refresh_turn",
            "blockstep: sub-steps keep their rows until bodies turn this far, rad, 0: always "

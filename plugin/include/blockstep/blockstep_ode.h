@@ -115,8 +115,10 @@ ODE_API void dWorldSetBlockSinkingDepth(dWorldID w, dReal metres);
 ODE_API dReal dWorldGetBlockSinkingDepth(dWorldID w);
 /* With blockstep's own collision every sub-step, a part whose solve spins
  * a touching body past the turn per sub-step (dWorldSetBlockMaxTurn) is
- * taken again from its start, shorter, once (1), or kept (0). The default
- * is the solver's own (on sub-stepped). BLOCKSTEP_RETAKE_TURNS. */
+ * taken again from its start, shorter, once (1), or kept (0); so is a part
+ * whose solve sends a body farther than its collision reached (taken again
+ * reaching farther). The default is the solver's own (on sub-stepped).
+ * BLOCKSTEP_RETAKE_TURNS. */
 ODE_API void dWorldSetBlockRetakeTurns(dWorldID w, int on);
 ODE_API int dWorldGetBlockRetakeTurns(dWorldID w);
 /* Cut an island with more joint rows than that (a cloth, a lattice) into
