@@ -87,15 +87,15 @@ std::vector<std::string> costGrid() {
 // How many quickstep settings blockstep beats, at no more solve time and
 // at no more solve and collision time (standing() says how).
 void reportBeaten(const std::vector<RunResult>& results, const std::vector<Stepper>& steppers,
-                  bool hasJoints) {
-  const Standing bySolve = standing(results, steppers, hasJoints, false);
-  const Standing byFrame = standing(results, steppers, hasJoints, true);
+                  SceneError measure) {
+  const Standing bySolve = standing(results, steppers, measure, false);
+  const Standing byFrame = standing(results, steppers, measure, true);
   if (bySolve.quick > 0)
     std::printf(
         "%-12s %d of %d quickstep settings beaten by blockstep at no more solve time, %d at no "
         "more solve and collision time (lower %s, no deeper settled contact)\n",
         results.front().scene.c_str(), bySolve.beaten, bySolve.quick, byFrame.beaten,
-        hasJoints ? "joint separation" : "top-box drift");
+        describe(measure));
 }
 
 // A built-in scene by name, or "file:PATH" read from a scene file.
@@ -597,7 +597,7 @@ int main(int argc, char** argv) {
           (quickSolveMs == 0.0 || s.label == "quickstep:20"))
         quickSolveMs = sceneResults[k].medianSolveMs;
     }
-    const bool hasJoints = !buildScene(jobList[first].scene, size)->joints().empty();
+    const SceneError measure = sceneErrorOf(*buildScene(jobList[first].scene, size));
     for (std::size_t k = 0; k < parsed.size(); ++k) {
       const RunResult& r = sceneResults[k];
       const double ratio = quickSolveMs > 0.0 ? r.medianSolveMs / quickSolveMs : 0.0;
@@ -617,8 +617,8 @@ int main(int argc, char** argv) {
       j["iterations"] = st.iterations;
       j["frame_dt"] = st.overrides.dt.value_or(options.dt);
       j["substeps"] = st.substeps;
-      j["error_m"] = sceneError(r, hasJoints);
-      j["error_is"] = hasJoints ? "max joint separation" : "top-box drift";
+      j["error_m"] = sceneError(r, measure);
+      j["error_is"] = describe(measure);
       if (!out.empty() && replayStride > 0 && r.framesRun > 0) {
         j["replay_stride"] = replayStride;
         j["replay_file"] = runPath("", r.scene, r.stepper, "poses_", ".bin").string();
@@ -626,7 +626,7 @@ int main(int argc, char** argv) {
       }
       all.push_back(j);
     }
-    reportBeaten(sceneResults, parsed, hasJoints);
+    reportBeaten(sceneResults, parsed, measure);
   }
   if (jobs > 1)
     std::printf("(%d runs at a time: their solve times shared the machine's cores)\n", jobs);

@@ -645,13 +645,38 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
   return r;
 }
 
-double sceneError(const RunResult& r, bool hasJoints) {
-  return hasJoints ? r.maxSeparation : r.drift;
+SceneError sceneErrorOf(const Scene& scene) {
+  if (!scene.joints().empty()) return SceneError::JointSeparation;
+  return scene.probe() ? SceneError::ProbeDrift : SceneError::HeldPenetration;
+}
+
+const char* describe(SceneError e) {
+  switch (e) {
+    case SceneError::JointSeparation:
+      return "max joint separation";
+    case SceneError::ProbeDrift:
+      return "top-box drift";
+    case SceneError::HeldPenetration:
+      return "deepest held contact";
+  }
+  return "";
+}
+
+double sceneError(const RunResult& r, SceneError e) {
+  switch (e) {
+    case SceneError::JointSeparation:
+      return r.maxSeparation;
+    case SceneError::ProbeDrift:
+      return r.drift;
+    case SceneError::HeldPenetration:
+      return r.maxHeldPenetration;
+  }
+  return 0.0;
 }
 
 Standing standing(const std::vector<RunResult>& results, const std::vector<Stepper>& steppers,
-                  bool hasJoints, bool withCollision) {
-  auto error = [hasJoints](const RunResult& r) { return sceneError(r, hasJoints); };
+                  SceneError measure, bool withCollision) {
+  auto error = [measure](const RunResult& r) { return sceneError(r, measure); };
   auto cost = [withCollision](const RunResult& r) {
     return r.medianSolveMs + (withCollision ? r.medianCollideMs : 0.0);
   };

@@ -138,13 +138,17 @@ struct RunResult {
   int poseStride = 0;
 };
 
-// The error a scene is judged by: joint separation, or for a stack of
-// boxes (no joints) how far its top box drifted.
-double sceneError(const RunResult& r, bool hasJoints);
+// The error a scene is judged by: joint separation; for a stack of boxes
+// (no joints) how far its probe, the top box, drifted; for a scene of
+// loose bodies with no probe (a pile) the deepest contact held from one
+// frame's collision to the next.
+enum class SceneError { JointSeparation, ProbeDrift, HeldPenetration };
+SceneError sceneErrorOf(const Scene& scene);
+const char* describe(SceneError e);
+double sceneError(const RunResult& r, SceneError e);
 
 // How many quickstep runs some blockstep run beats at no more cost: lower
-// error (joint separation, or where the scene has no joints the top box's
-// drift) and settled contact no deeper (the last second's mean deepest
+// error (sceneError) and settled contact no deeper (the last second's mean deepest
 // contact, 0.1 mm slack). Cost is the median solve time, or with
 // `withCollision` the solve and collision times together, the frame's
 // whole physics: a program that sub-steps quickstep collides every
@@ -156,7 +160,7 @@ struct Standing {
   int beaten = 0;  // of those, beaten by some blockstep run
 };
 Standing standing(const std::vector<RunResult>& results, const std::vector<Stepper>& steppers,
-                  bool hasJoints, bool withCollision);
+                  SceneError measure, bool withCollision);
 
 struct RunOptions {
   int frames = 300;

@@ -918,23 +918,41 @@ TEST(CompareGrid, StandingCountsTheCheaperMoreAccurateRunsWithAndWithoutCollisio
                                          parseStepper("blockstep:substep:40")};
   std::vector<RunResult> results = {run(1.0, 0.8, 0.010, 0.003), run(0.2, 0.2, 0.5, 0.004),
                                     run(1.2, 0.1, 0.002, 0.00305), run(9.0, 0.1, 0.0001, 0.001)};
-  Standing bySolve = standing(results, steppers, true, false);
-  Standing byFrame = standing(results, steppers, true, true);
+  Standing bySolve = standing(results, steppers, SceneError::JointSeparation, false);
+  Standing byFrame = standing(results, steppers, SceneError::JointSeparation, true);
   EXPECT_EQ(bySolve.quick, 2);
   EXPECT_EQ(bySolve.beaten, 0);
   EXPECT_EQ(byFrame.beaten, 1);
   results[2].lastSecondPenetration = 0.0042;  // 1.2 mm deeper than quickstep 20 x 4's
-  EXPECT_EQ(standing(results, steppers, true, true).beaten, 0);
+  EXPECT_EQ(standing(results, steppers, SceneError::JointSeparation, true).beaten, 0);
   results[2].lastSecondPenetration = 0.00305;  // 0.05 mm deeper: within the slack
   results[2].stoppedBecause = "refused a frame";
-  EXPECT_EQ(standing(results, steppers, true, true).beaten, 0);
+  EXPECT_EQ(standing(results, steppers, SceneError::JointSeparation, true).beaten, 0);
   // Without joints the top box's drift is the error.
   results[2].stoppedBecause.clear();
   results[2].drift = 0.5;
   results[0].drift = 0.1;
-  EXPECT_EQ(standing(results, steppers, false, true).beaten, 0);
+  EXPECT_EQ(standing(results, steppers, SceneError::ProbeDrift, true).beaten, 0);
   results[2].drift = 0.05;
-  EXPECT_EQ(standing(results, steppers, false, true).beaten, 1);
+  EXPECT_EQ(standing(results, steppers, SceneError::ProbeDrift, true).beaten, 1);
+  // Without a top box either (a pile), the deepest held contact: the pile
+  // at 1/60 s, blockstep at 5 sub-steps held 5.4 mm in 41.6 ms, quickstep
+  // 10 x 10 39.8 mm in 48.2 ms, and no drift is measured for either.
+  results[0].drift = results[2].drift = 0.0;
+  results[2].maxHeldPenetration = 0.0054;
+  results[0].maxHeldPenetration = 0.0398;
+  EXPECT_EQ(standing(results, steppers, SceneError::ProbeDrift, true).beaten, 0);
+  EXPECT_EQ(standing(results, steppers, SceneError::HeldPenetration, true).beaten, 1);
+  results[2].maxHeldPenetration = 0.05;
+  EXPECT_EQ(standing(results, steppers, SceneError::HeldPenetration, true).beaten, 0);
+}
+
+// Which error each kind of scene is judged by.
+TEST(CompareGrid, ScenesAreJudgedByJointsTheirTopBoxOrTheirDeepestContact) {
+  EXPECT_EQ(sceneErrorOf(*makeScene("chain")), SceneError::JointSeparation);
+  EXPECT_EQ(sceneErrorOf(*makeScene("stack")), SceneError::ProbeDrift);
+  EXPECT_EQ(sceneErrorOf(*makeScene("hulls", 20)), SceneError::HeldPenetration);
+  EXPECT_STREQ(describe(SceneError::HeldPenetration), "deepest held contact");
 }
 
 }  // namespace blockstep::compare
