@@ -149,6 +149,26 @@ BENCHMARK_CAPTURE(pair, capsule_capsule_gjk, collideConvex, kCapsule, kCapsule, 
 BENCHMARK_CAPTURE(pair, sphere_capsule_fast, collideRoundSegments, kBall, kCapsule, -0.005);
 BENCHMARK_CAPTURE(pair, sphere_capsule_gjk, collideConvex, kBall, kCapsule, -0.005);
 
+// Two cylinders (or a capsule on a cylinder) lying across one another at
+// 0.3 rad, side on side, 5 mm deep: the sides' closest points and rims
+// against GJK/EPA.
+void sides(benchmark::State& state, Collide collide, Shape a, Shape b) {
+  const Quat lying(Eigen::AngleAxisd(0.5 * kPi, Vec3::UnitY()));
+  const ShapePose pa{Vec3::Zero(), lying.toRotationMatrix()};
+  const ShapePose pb{Vec3(0.05, 0.02, a.radius + b.radius - 0.005),
+                     (Quat(Eigen::AngleAxisd(0.3, Vec3::UnitZ())) * lying).toRotationMatrix()};
+  ContactManifold m;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(collide(a, pa, b, pb, 0.02, m));
+  }
+  state.counters["points"] = m.pointCount;
+}
+const Shape kCylinder = Shape::cylinder(0, 0.1, 1.0);
+BENCHMARK_CAPTURE(sides, cylinder_cylinder_fast, collideRoundSegments, kCylinder, kCylinder);
+BENCHMARK_CAPTURE(sides, cylinder_cylinder_gjk, collideConvex, kCylinder, kCylinder);
+BENCHMARK_CAPTURE(sides, capsule_cylinder_fast, collideRoundSegments, kCapsule, kCylinder);
+BENCHMARK_CAPTURE(sides, capsule_cylinder_gjk, collideConvex, kCapsule, kCylinder);
+
 }  // namespace
 
 BENCHMARK_MAIN();

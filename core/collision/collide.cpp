@@ -83,6 +83,11 @@ int collideShapes(const Shape& s1, const ShapePose& p1, const Shape& s2, const S
     return collideSpheres(*a, *pa, *b, *pb, margin, m);
   auto round = [](K k) { return k == K::Sphere || k == K::Capsule; };
   if (round(a->kind) && round(b->kind)) return collideRoundSegments(*a, *pa, *b, *pb, margin, m);
+  auto sides = [](K k) { return k == K::Capsule || k == K::Cylinder; };
+  if (sides(a->kind) && sides(b->kind)) {
+    const int n = collideRoundSegments(*a, *pa, *b, *pb, margin, m);
+    if (n >= 0) return n;
+  }
   return collideConvex(*a, *pa, *b, *pb, margin, m);
 }
 

@@ -20,6 +20,9 @@ int collideBoxSphere(const Shape& box, const ShapePose& pb, const Shape& sphere,
                      const ShapePose& ps, double margin, ContactManifold& m);
 // Sphere or capsule against sphere or capsule: the closest points of the
 // two core segments, and each segment end within the margin of the other.
+// A cylinder against a capsule or cylinder the same way where their sides
+// meet (a cylinder's ends: their rims); -1 where a cylinder's cap or rim
+// is nearest or the two lie parallel: the caller takes GJK/EPA.
 int collideRoundSegments(const Shape& a, const ShapePose& pa, const Shape& b, const ShapePose& pb,
                          double margin, ContactManifold& m);
 // Separating-axis test over the 15 axes; face contacts clip the incident
