@@ -52,7 +52,8 @@ double surfaceRoundness(Shape::Kind kind, double radius, const Vec3& axis, const
 }
 
 // The exact fast paths (sphere and box against planes, spheres and boxes
-// with each other) come first; every other convex pair goes through
+// with each other, spheres, capsules and cylinders by their segments where
+// their sides meet) come first; every other convex pair goes through
 // GJK/EPA and feature clipping.
 int collideShapes(const Shape& s1, const ShapePose& p1, const Shape& s2, const ShapePose& p2,
                   double margin, bool boxBoxBySat, ContactManifold& m, bool& swapped) {
