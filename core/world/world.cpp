@@ -531,9 +531,9 @@ void World::keepContactsForNextStep() {
 // farther than its collision reached (Collider::outranReach): a body
 // struck or spun up went into one it had no contact with; taken again,
 // each shape reaches as far as its solved speed carries it, so those
-// contacts come in speculatively. Contacts the caller added (addContact) hold for
-// every part; forces act on every part; contacts push out of penetration
-// no faster than over the whole step (Solver::penetrationRate). An island
+// contacts come in speculatively. Contacts the caller added (addContact)
+// hold for every part; forces act on every part; contacts push out of
+// penetration no faster than over the whole step (Solver::penetrationRate). An island
 // the guard catches in one part is put back as it was before the whole
 // step and held still (made static) for the parts that remain.
 void World::stepCollidingEachSubstep(double h) {

@@ -649,10 +649,11 @@ TEST(ConvexWorld, APartThatSpinsATouchingBodyUpIsTakenAgainShorter) {
   EXPECT_GT(retaken.retaken, 0);
   EXPECT_LT(retaken.deepest, 0.001);
 }
-// A 10 kg ball at 12 m/s strikes a 0.1 kg ball 8 mm short of a third,
-// in the first 1/600 s part of a step: the light ball leaves the strike at 11.9 m/s and
-// goes 20 mm in the part, farther than it reached when the part collided
-// (half the resting margin: it stood still). Returns the gap left between
+
+// A 10 kg ball at 12 m/s strikes a 0.1 kg ball 8 mm short of a third, in
+// the first 1/600 s part of a step: the light ball leaves the strike at
+// 11.9 m/s and goes 20 mm in the part, farther than it reached when the
+// part collided (half the resting margin: it stood still). Returns the gap left between
 // the light ball and the third after each of the first two steps, and the
 // parts taken again.
 struct Struck {
