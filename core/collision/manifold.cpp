@@ -135,11 +135,6 @@ int reduceToFour(const Vec3* pos, const double* sep, int n, int* keep) {
 
 namespace {
 
-// A reference face must lie within about 25 degrees of the normal to
-// clip: past that the contact is edge against edge, and a point projected
-// along the normal onto the reference's plane may land beyond its edge.
-constexpr double kReferenceCos = 0.9;
-
 // Two side lines further apart than this (sine of their angle) cross
 // rather than lie side by side. At 0.05 (3 degrees) a 0.2 m side line's
 // end is 5 mm off the other's, which a 30 mm radius curves 0.4 mm away.
@@ -255,7 +250,15 @@ int clipFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n, doub
   // The reference: the face most along the normal (A's on a tie), or A's
   // edge when neither feature is a face.
   const double alignA = featureA.normal.dot(n), alignB = -featureB.normal.dot(n);
-  const bool refIsA = alignA >= alignB - 1e-9;
+  bool refIsA = alignA >= alignB - 1e-9;
+  // Where no face lies within kFaceContactCos of the normal the two touch
+  // edge to edge, if at all along a line: a box on its edge along a rod
+  // touched by one point, see-sawed about it and put its edge's other end
+  // 15.7 mm into the rod (ConvexCollision.ABoxOnItsEdgeAlongARod...).
+  if (std::max(alignA, alignB) > 0.0 && std::max(alignA, alignB) < kFaceContactCos) {
+    if (!supportingEdge(a, n, featureA) || !supportingEdge(b, -n, featureB)) return onePoint();
+    refIsA = true;
+  }
   const Feature& ref = refIsA ? featureA : featureB;
   const Feature& inc = refIsA ? featureB : featureA;
   const Vec3 outward = refIsA ? n : Vec3(-n);  // from the reference toward the other shape
@@ -272,7 +275,7 @@ int clipFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n, doub
     sideNormal[1] = -u, sideOffset[1] = -u.dot(ref.points[1]);
     sides = 2;
   } else {
-    if (planeNormal.dot(outward) < kReferenceCos) return onePoint();
+    if (planeNormal.dot(outward) < kFaceContactCos) return onePoint();
     for (int k = 0; k < ref.count; ++k) {
       const Vec3& p = ref.points[k];
       const Vec3 inward = planeNormal.cross(ref.points[(k + 1) % ref.count] - p);

@@ -1,5 +1,6 @@
 #include "core/collision/support.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace blockstep {
@@ -181,6 +182,71 @@ void supportingFeature(const PosedConvex& c, const Vec3& direction, Feature& out
     }
     case Shape::Kind::Plane:
       return;
+  }
+}
+
+bool supportingEdge(const PosedConvex& c, const Vec3& direction, Feature& out) {
+  const Shape& s = *c.shape;
+  const Mat3& R = c.pose.rotation;
+  const Vec3& centre = c.pose.position;
+  out.count = 0;
+  out.normal = Vec3::Zero();
+  switch (s.kind) {
+    case Shape::Kind::Capsule:
+    case Shape::Kind::Cylinder:
+      supportingFeature(c, direction, out);  // the side line where it lies square enough
+      return out.count == 2;
+    case Shape::Kind::Box: {
+      // The edge along the axis most square to d, between the two faces
+      // toward d.
+      const Vec3 d = R.transpose() * direction;
+      int along = 0;
+      for (int i = 1; i < 3; ++i)
+        if (std::abs(d[i]) < std::abs(d[along])) along = i;
+      if (std::abs(d[along]) >= kSideTouchCos) return false;
+      const Vec3& e = s.halfExtents;
+      Vec3 middle = centre;
+      std::uint32_t corner = 0;
+      for (int i = 0; i < 3; ++i) {
+        if (i == along) continue;
+        middle += (d[i] >= 0.0 ? e[i] : -e[i]) * R.col(i);
+        corner = corner << 1 | (d[i] >= 0.0 ? 1u : 0u);
+      }
+      out.points[out.count++] = middle - e[along] * R.col(along);
+      out.points[out.count++] = middle + e[along] * R.col(along);
+      out.id = kEdge | static_cast<std::uint32_t>(along) << 2 | corner;
+      return true;
+    }
+    case Shape::Kind::Convex: {
+      // An edge of the face most along d, from that face's vertex farthest
+      // along d: on an edge, the two faces beside it are the most aligned,
+      // and the edge lies nearly square to d.
+      const ConvexHull& hull = *s.hull;
+      const Vec3 d = R.transpose() * direction;
+      const ConvexHull::Face& f = hull.faces()[hull.supportFace(d)];
+      int top = 0;
+      for (int k = 1; k < f.count; ++k)
+        if (hull.faceVertex(f, k).dot(d) > hull.faceVertex(f, top).dot(d)) top = k;
+      int best = -1;
+      double squarest = kSideTouchCos;
+      for (const int k : {(top + f.count - 1) % f.count, (top + 1) % f.count}) {
+        const double slope =
+            std::abs((hull.faceVertex(f, k) - hull.faceVertex(f, top)).normalized().dot(d));
+        if (slope < squarest) squarest = slope, best = k;
+      }
+      if (best < 0) return false;
+      // The lower vertex index first, so that either face names it alike.
+      const int v0 = hull.faceVertices()[f.first + top];
+      const int v1 = hull.faceVertices()[f.first + best];
+      const auto lo = static_cast<std::uint32_t>(std::min(v0, v1));
+      const auto hi = static_cast<std::uint32_t>(std::max(v0, v1));
+      out.points[out.count++] = centre + R * hull.vertices()[lo];
+      out.points[out.count++] = centre + R * hull.vertices()[hi];
+      out.id = kEdge | (lo & 0xfffu) << 12 | (hi & 0xfffu);
+      return true;
+    }
+    default:
+      return false;
   }
 }
 

@@ -16,6 +16,12 @@ namespace blockstep {
 // at its support point only.
 inline constexpr int kMaxFeaturePoints = 64;
 
+// A face touches along a normal only within about 25 degrees of it (the
+// cosine): past that the contact is the face's edge (or vertex), and a
+// point projected along the normal onto the face's plane may land beyond
+// it. The manifold clips against a reference face only this close.
+inline constexpr double kFaceContactCos = 0.9;
+
 struct PosedConvex {
   const Shape* shape = nullptr;
   ShapePose pose;
@@ -44,5 +50,11 @@ struct Feature {
   std::uint32_t id = 0;
 };
 void supportingFeature(const PosedConvex& c, const Vec3& direction, Feature& out);
+
+// Where no face lies within kFaceContactCos of `direction`: the edge the
+// shape touches by, when one lies nearly square to it (a box's or hull's
+// edge, a capsule's or cylinder's side line), as an edge Feature.
+// Returns false where the shape touches by a point only.
+bool supportingEdge(const PosedConvex& c, const Vec3& direction, Feature& out);
 
 }  // namespace blockstep
