@@ -140,6 +140,13 @@ namespace {
 // end is 5 mm off the other's, which a 30 mm radius curves 0.4 mm away.
 constexpr double kParallelSides = 0.05;
 
+// Lines at a larger angle still touch along a line where one only pitches
+// against the other (its far end rises along the normal, as a box's edge
+// over a rod it see-saws on): their clipped points lie over the reference
+// line, no more than this (m) to its side, and are kept; a point farther
+// to the side lies where nothing touches.
+constexpr double kBesideLine = 0.001;
+
 // Most points clipping can make: an incident polygon gains at most one
 // corner per side plane.
 constexpr int kMaxClipped = 2 * kMaxFeaturePoints;
@@ -284,17 +291,19 @@ int clipFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n, doub
     }
   }
   if (ref.count == 2 && inc.count > 2) return onePoint();  // an edge on a face: the face clips
-  // Two side lines (capsules, cylinders) touch along a line only when they
-  // lie side by side. Crossing, they touch where they cross, which is the
-  // caller's single point: clipped to the reference's ends, the incident
-  // line kept points far to the side of the reference, where nothing
-  // touches, at the depth of the crossing (a thin cylinder lying across a
-  // fat one in a pile stayed 12.7 mm deep while the solver turned it about
-  // its own axis).
+  // Two side lines (capsules, cylinders) or edges touch along a line only
+  // when they lie side by side. Crossing, they touch where they cross,
+  // which is the caller's single point: clipped to the reference's ends,
+  // the incident line kept points far to the side of the reference, where
+  // nothing touches, at the depth of the crossing (a thin cylinder lying
+  // across a fat one in a pile stayed 12.7 mm deep while the solver turned
+  // it about its own axis). So past kParallelSides only points within
+  // kBesideLine of the reference line count, both ends or none.
+  Vec3 sideways = Vec3::Zero();
   if (ref.count == 2 && inc.count == 2) {
     const Vec3 u = (ref.points[1] - ref.points[0]).normalized();
     const Vec3 v = (inc.points[1] - inc.points[0]).normalized();
-    if (u.cross(v).norm() > kParallelSides) return onePoint();
+    if (u.cross(v).norm() > kParallelSides) sideways = u.cross(planeNormal);
   }
 
   ClipPoint clipped[kMaxClipped];
@@ -306,6 +315,7 @@ int clipFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n, doub
   int kept = 0;
   for (int i = 0; i < count; ++i) {
     const Vec3& p = clipped[i].position;
+    if (std::abs((p - ref.points[0]).dot(sideways)) > kBesideLine) return onePoint();
     // Along the normal from the incident point to the reference's plane.
     const double s = (p - ref.points[0]).dot(planeNormal) / rate;
     if (s > margin) continue;
@@ -313,7 +323,7 @@ int clipFeatures(const PosedConvex& a, const PosedConvex& b, const Vec3& n, doub
     sep[kept] = s;
     ids[kept++] = clippedPointId(refIsA, ref.id, inc.id, clipped[i].line);
   }
-  if (kept == 0) return onePoint();
+  if (kept == 0 || (kept == 1 && !sideways.isZero())) return onePoint();
   return addReducedPoints(m, pos, sep, ids, kept);
 }
 

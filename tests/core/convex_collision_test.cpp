@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <numeric>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "core/collision/convex_hull.h"
@@ -823,47 +824,63 @@ TEST(ConvexCollision, ABoxEdgeJustTouchingAHullEdgeIsNotTakenForDeep) {
 }
 
 TEST(ConvexCollision, ABoxOnItsEdgeAlongARodHoldsAtBothEnds) {
-  // A box on its edge (turned 45 degrees about x) over a rod lying 2
-  // degrees off along it, the rod's high end 1 mm into the edge. No face
-  // of the box lies within 25 degrees of the normal, so the box touches by
-  // its edge, which clips against the rod's side line: a point at each
-  // end, the low one 8.8 mm apart (a speculative point). With one point
-  // in the pile an 11 kg box falling at 6 m/s onto a spinning 0.64 kg rod
-  // see-sawed about it, and its edge's other end went 15.7 mm into the rod.
-  const double theta = 2.0 * kPi / 180.0, radius = 0.038, halfLength = 0.14;
+  // A box on its edge (turned 45 degrees about x) over a rod pitched 2 or
+  // 5 degrees off along it, the rod's high end 1 mm into the edge. No
+  // face of the box lies within 25 degrees of the normal, so the box
+  // touches by its edge, which clips against the rod's side line: a point
+  // at each end, the low one 8.8 or 23.4 mm apart (a speculative point).
+  // With one point in the pile an 11 kg box falling at 6 m/s onto a
+  // spinning 0.64 kg rod (2.7 degrees) see-sawed about it, and its edge's
+  // other end went 15.7 mm into the rod; an 8.9 kg box on a 0.36 kg rod
+  // at 4.4 degrees, 11.7 mm.
+  const double radius = 0.038, halfLength = 0.14;
   const Shape rod = Shape::cylinder(1, radius, 2.0 * halfLength);
-  const Vec3 axis(std::cos(theta), 0.0, std::sin(theta));
-  const ShapePose rodPose = at(Vec3::Zero(), Quat::FromTwoVectors(Vec3::UnitZ(), axis));
   const Vec3 half(0.188, 0.09, 0.09);
-  const double highEnd = halfLength * std::sin(theta) + radius * std::cos(theta);
-  const double edgeHeight = highEnd - 0.001;
-  const ShapePose boxPose =
-      at(Vec3(0.0, 0.0, edgeHeight + half.y() * std::sqrt(2.0)), about(Vec3::UnitX(), kPi / 4));
-  // The low end's gap: the side line's drop over the rod's length, less
-  // the 1 mm at the high end, measured square to the rod.
-  const double lowGap = (2.0 * halfLength * std::sin(theta) - 0.001) * std::cos(theta);
   const Shape box = Shape::box(0, half), hull = Shape::convex(0, boxHull(half));
-  for (const Shape* edge : {&box, &hull}) {
-    SCOPED_TRACE(edge->kind == Shape::Kind::Box ? "box" : "hull");
-    ContactManifold m;
-    ASSERT_EQ(collideConvex(*edge, boxPose, rod, rodPose, kMargin, m), 2);
-    // 1 mm along z, where the rim's top meets the edge (no sampled
-    // direction overlaps less).
-    EXPECT_NEAR(deepest(m), -0.001, 1e-9);
-    EXPECT_GE(deepest(m), -leastProjectedOverlap(*edge, boxPose, rod, rodPose));
-    EXPECT_LT((m.normal + Vec3::UnitZ()).norm(), 1e-6) << m.normal.transpose();  // box to rod
-    const double shallow = std::max(m.points[0].separation, m.points[1].separation);
-    EXPECT_NEAR(shallow, lowGap, 2e-4);
-    // Both on the edge (y = 0 at the edge's height, within the gap's
-    // tilt) and at the rod's two ends.
-    for (int i = 0; i < 2; ++i) {
-      const Vec3 onEdge = m.points[i].position - 0.5 * m.points[i].separation * m.normal;
-      EXPECT_NEAR(onEdge.y(), 0.0, 1e-3) << i;
-      EXPECT_NEAR(onEdge.z(), edgeHeight, 1e-3) << i;
+  for (const double degrees : {2.0, 5.0}) {
+    const double theta = degrees * kPi / 180.0, margin = 0.03;
+    const Vec3 axis(std::cos(theta), 0.0, std::sin(theta));
+    const ShapePose rodPose = at(Vec3::Zero(), Quat::FromTwoVectors(Vec3::UnitZ(), axis));
+    const double highEnd = halfLength * std::sin(theta) + radius * std::cos(theta);
+    const double edgeHeight = highEnd - 0.001;
+    const ShapePose boxPose =
+        at(Vec3(0.0, 0.0, edgeHeight + half.y() * std::sqrt(2.0)), about(Vec3::UnitX(), kPi / 4));
+    // The low end's gap along the normal (z): the side line's drop over
+    // the rod's length, less the 1 mm at the high end.
+    const double lowGap = 2.0 * halfLength * std::sin(theta) - 0.001;
+    for (const Shape* edge : {&box, &hull}) {
+      SCOPED_TRACE(std::string(edge->kind == Shape::Kind::Box ? "box" : "hull") + " at " +
+                   std::to_string(degrees) + " degrees");
+      ContactManifold m;
+      ASSERT_EQ(collideConvex(*edge, boxPose, rod, rodPose, margin, m), 2);
+      // 1 mm along z, where the rim's top meets the edge (no sampled
+      // direction overlaps less).
+      EXPECT_NEAR(deepest(m), -0.001, 1e-9);
+      EXPECT_GE(deepest(m), -leastProjectedOverlap(*edge, boxPose, rod, rodPose));
+      EXPECT_LT((m.normal + Vec3::UnitZ()).norm(), 1e-6) << m.normal.transpose();  // box to rod
+      const double shallow = std::max(m.points[0].separation, m.points[1].separation);
+      EXPECT_NEAR(shallow, lowGap, 1e-9);
+      // Both on the edge (y = 0 at the edge's height, within the gap's
+      // tilt) and at the rod's two ends.
+      for (int i = 0; i < 2; ++i) {
+        const Vec3 onEdge = m.points[i].position - 0.5 * m.points[i].separation * m.normal;
+        EXPECT_NEAR(onEdge.y(), 0.0, 1e-9) << i;
+        EXPECT_NEAR(onEdge.z(), edgeHeight, 1e-9) << i;
+      }
+      EXPECT_NEAR(std::abs(m.points[0].position.x() - m.points[1].position.x()),
+                  2.0 * halfLength * std::cos(theta), 2.0 * radius * std::sin(theta) + 1e-6);
     }
-    EXPECT_NEAR(std::abs(m.points[0].position.x() - m.points[1].position.x()),
-                2.0 * halfLength * std::cos(theta), 2.0 * radius * std::sin(theta) + 1e-6);
   }
+  // Turned 5 degrees about z instead (level, crossing the edge in plan
+  // view): the ends lie beside the edge, over the box's sloping faces,
+  // where nothing touches. One point, where they cross, 1 mm deep.
+  const ShapePose level = at(
+      Vec3::Zero(), Quat::FromTwoVectors(Vec3::UnitZ(), Vec3(std::cos(0.087), std::sin(0.087), 0)));
+  const ShapePose boxPose =
+      at(Vec3(0.0, 0.0, radius - 0.001 + half.y() * std::sqrt(2.0)), about(Vec3::UnitX(), kPi / 4));
+  ContactManifold m;
+  ASSERT_EQ(collideConvex(box, boxPose, rod, level, 0.03, m), 1);
+  EXPECT_NEAR(m.points[0].separation, -0.001, 1e-9);
 }
 
 TEST(ConvexCollision, RoundShapesTouchingAtTheirSidesKeepTheirDepth) {
