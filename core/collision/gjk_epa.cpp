@@ -121,6 +121,9 @@ struct CcdCore {
   int* supportPoints;
 };
 constexpr int kMostSupportPoints = 1000;  // GJK's 200 steps take 400
+// Rounds of moving B out along the best normal and taking the closest
+// points' direction (corePenetration): each overlaps less or the rounds end.
+constexpr int kApartRounds = 4;
 
 void ccdSupport(const void* object, const ccd_vec3_t* direction, ccd_vec3_t* out) {
   const auto* core = static_cast<const CcdCore*>(object);
@@ -307,16 +310,23 @@ CorePenetration corePenetration(const PosedConvex& a, const PosedConvex& b) {
   CorePenetration out;
   int supportPoints = 0;
   const CcdCore coreA{&a, &supportPoints}, coreB{&b, &supportPoints};
-  if (ccdGJKPenetration(&coreA, &coreB, &ccd, &depth, &dir, &pos) != 0) return out;
+  const bool ccdAnswered = ccdGJKPenetration(&coreA, &coreB, &ccd, &depth, &dir, &pos) == 0;
   const Vec3 n(dir.v[0], dir.v[1], dir.v[2]);
   const Vec3 p(pos.v[0], pos.v[1], pos.v[2]);
-  if (!std::isfinite(depth) || !n.allFinite() || !p.allFinite() || n.squaredNorm() < 0.5) {
-    return out;
-  }
+  const bool epaAnswered = ccdAnswered && std::isfinite(depth) && n.allFinite() && p.allFinite() &&
+                           n.squaredNorm() >= 0.5;
+  // Where libccd sees the cores merely touching (an overlap it cannot
+  // expand) the line of centres starts the search instead, and the
+  // candidates below find the least overlap: along the line of centres
+  // alone, a cylinder standing still against a box's edge in the
+  // 1,000-shape pile came out 17.5 mm deep between answers 0.14 mm apart.
+  const Vec3 centres = b.pose.position - a.pose.position;
   out.found = true;
-  out.depth = depth;
-  out.normal = n.normalized();
-  out.position = p;
+  out.depth = epaAnswered ? depth : 0.0;
+  out.normal = epaAnswered                     ? Vec3(n.normalized())
+               : centres.squaredNorm() > 1e-24 ? Vec3(centres.normalized())
+                                               : Vec3(Vec3::UnitZ());
+  out.position = epaAnswered ? p : 0.5 * (a.coreSupport(out.normal) + b.coreSupport(-out.normal));
   // Cores that barely overlap put the origin on the boundary of EPA's
   // polytope, and the face it ends on may be the far one: its normal then
   // points from B back into A. Clipped along it, a cylinder resting
@@ -341,7 +351,7 @@ CorePenetration corePenetration(const PosedConvex& a, const PosedConvex& b) {
   // answers on round cores were, and the edges' pairs cost the 100 hulls
   // 10% more collision time.)
   const double along = overlapAlong(out.normal);
-  const bool understated = supportPoints > kMostSupportPoints ||
+  const bool understated = !epaAnswered || supportPoints > kMostSupportPoints ||
                            along > out.depth + 1e-4 * (a.coreRadius() + b.coreRadius());
   out.depth = along;
   // EPA on round cores can also end on a face far from the least overlap
@@ -384,7 +394,24 @@ CorePenetration corePenetration(const PosedConvex& a, const PosedConvex& b) {
         consider(-d);
       });
     });
+    // Where a round side meets an edge no candidate above need be the
+    // least overlap either (a cylinder standing against a box's edge in
+    // the 1,000-shape pile: 0.031 mm by the best of them, 0.012 mm after
+    // these rounds). B moved out along the best normal so far by its
+    // overlap, and a little more, lies apart from A; the direction
+    // between their closest points then is nearer the least overlap, and
+    // an upper bound like the others.
+    const double gap = 1e-3 * (a.coreRadius() + b.coreRadius());
+    for (int round = 0; round < kApartRounds; ++round) {
+      PosedConvex apart = b;
+      apart.pose.position += (out.depth + gap) * out.normal;
+      const CoreDistance w = coreDistance(a, apart);
+      const double before = out.depth;
+      if (!w.overlapping) consider(w.pointB - w.pointA);
+      if (!(out.depth < before - 1e-12)) break;
+    }
   }
+  out.found = std::isfinite(out.depth) && out.normal.allFinite();
   return out;
 }
 

@@ -32,8 +32,9 @@ struct CorePenetration {
 // EPA (expanding polytope) through libccd's ccdGJKPenetration, its answer
 // checked against the overlap along the line of centres and the cores'
 // face normals (the least of them wins: libccd can end on a far face).
-// `found` is false when libccd sees no overlap (cores merely touching) or
-// gives a non-finite answer.
+// Where libccd sees no overlap it can expand (cores merely touching, or
+// overlapping flat, as crossing segments do), the search starts from the
+// line of centres. `found` is false only for a non-finite answer.
 CorePenetration corePenetration(const PosedConvex& a, const PosedConvex& b);
 
 }  // namespace blockstep

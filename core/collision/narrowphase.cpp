@@ -419,9 +419,8 @@ int collideConvex(const Shape& a, const ShapePose& pa, const Shape& b, const Sha
   }
   const CorePenetration deep = corePenetration(A, B);
   if (!deep.found) {
-    // Cores just touching (libccd sees no overlap) or in a flat overlap
-    // EPA cannot expand (crossing capsule segments): the radii are the
-    // depth, along the line of centres.
+    // No finite answer (poses the world refuses to step): the radii are
+    // the depth, along the line of centres.
     const Vec3 d = pb.position - pa.position;
     const Vec3 n = d.squaredNorm() > 0.0 ? Vec3(d.normalized()) : Vec3::UnitZ();
     if (clipFeatures(A, B, n, margin, m) > 0) return m.pointCount;

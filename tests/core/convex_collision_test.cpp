@@ -883,6 +883,34 @@ TEST(ConvexCollision, ABoxOnItsEdgeAlongARodHoldsAtBothEnds) {
   EXPECT_NEAR(m.points[0].separation, -0.001, 1e-9);
 }
 
+TEST(ConvexCollision, ACylinderStandingAgainstABoxEdgeIsNotTakenForDeep) {
+  // An upright cylinder resting against a box lying on its side in the
+  // 1,000-shape pile, both still (the poses the core held): EPA ended on a
+  // face whose normal they overlap 17.5 mm along, and neither the line of
+  // centres, the faces' normals nor the edges' cross products is the
+  // direction from the box's edge to the cylinder's side. Collided again
+  // with the bodies as still, the pair came out 0.14 mm apart, then 17.5
+  // mm deep, then touching.
+  const Shape box =
+      Shape::box(0, Vec3(0.13643486320602077, 0.11781439462784943, 0.18429109446735595));
+  const Shape cylinder = Shape::cylinder(1, 0.086418661076112818, 2.0 * 0.11765246669184419);
+  const ShapePose boxPose =
+      at(Vec3(2.2622882737118482, 2.2511173803194247, 0.13634946946397006),
+         Quat(0.58460820136988112, -0.39794421377466138, -0.58451832325936703, -0.39775869995312169)
+             .normalized());
+  const ShapePose cylinderPose = at(
+      Vec3(2.1440801717814382, 1.9957337666394539, 0.11766567010129829),
+      Quat(9.57259639549877e-05, 0.86808194570036679, -0.49642090220223495, -0.00011934121036545466)
+          .normalized());
+  const double leastOverlap = leastProjectedOverlap(box, boxPose, cylinder, cylinderPose);
+  ContactManifold m;
+  ASSERT_GT(collideConvex(box, boxPose, cylinder, cylinderPose, kMargin, m), 0);
+  std::printf("  deepest %.3f mm, least sampled overlap %.3f mm\n", 1e3 * deepest(m),
+              1e3 * leastOverlap);
+  EXPECT_GE(deepest(m), -leastOverlap - 1e-9);
+  EXPECT_GT(deepest(m), -1e-4);
+}
+
 TEST(ConvexCollision, RoundShapesTouchingAtTheirSidesKeepTheirDepth) {
   // Two cylinders, and a hull against a cylinder, 0.4-0.5 mm into one
   // another in the 1,000-shape pile (the poses the core held). Where a
