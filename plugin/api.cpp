@@ -803,6 +803,17 @@ int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* out) {
   });
 }
 
+dReal dWorldGetBlockDeepestContact(dWorldID w) {
+  return guarded(__func__, dReal(0), [&]() -> dReal {
+    const std::shared_ptr<ode::WorldRecord> record = Registry::instance().world(w);
+    const std::shared_ptr<WorldState> state = findState(w);
+    if (!state || !record) return 0;
+    std::lock_guard lock(record->mutex);
+    if (!record->bridge || state->stepper != dBlockStepperBlockstep) return 0;
+    return static_cast<dReal>(record->bridge->stats().deepestFound);
+  });
+}
+
 int dWorldGetBlockResidualHistory(dWorldID w, dReal* maxima, dReal* rms, int capacity) {
   return guarded(__func__, 0, [&] {
     const std::shared_ptr<ode::WorldRecord> record = Registry::instance().world(w);

@@ -29,7 +29,7 @@ void writeCsv(const std::filesystem::path& path, const RunResult& r) {
   if (!out) throw std::runtime_error("cannot write " + path.string());
   out << "frame,collide_ms,solve_ms,max_separation_m,rms_separation_m,max_angle_rad,"
          "penetration_m,contacts,kinetic_energy_j,potential_energy_j,handed_to_ode,"
-         "held_penetration_m\n";
+         "held_penetration_m,found_penetration_m\n";
   for (std::size_t f = 0; f < r.frames.size(); ++f) {
     const FrameRecord& rec = r.frames[f];
     const double rms =
@@ -37,7 +37,7 @@ void writeCsv(const std::filesystem::path& path, const RunResult& r) {
     out << f << ',' << rec.collideSeconds * 1e3 << ',' << rec.solveSeconds * 1e3 << ','
         << rec.joints.separation << ',' << rms << ',' << rec.joints.angle << ',' << rec.penetration
         << ',' << rec.contacts << ',' << rec.kineticEnergy << ',' << rec.potentialEnergy << ','
-        << rec.handedToOde << ',' << rec.heldPenetration << '\n';
+        << rec.handedToOde << ',' << rec.heldPenetration << ',' << rec.foundPenetration << '\n';
   }
 }
 
@@ -55,6 +55,8 @@ nlohmann::json summary(const RunResult& r, double quickSolveMs) {
   j["max_angle_rad"] = r.maxAngle;
   j["max_penetration_m"] = r.maxPenetration;
   j["max_held_penetration_m"] = r.maxHeldPenetration;
+  // blockstep's own collision only: the deepest it found within a frame.
+  j["max_found_penetration_m"] = r.maxFoundPenetration;
   j["last_second_penetration_m"] = r.lastSecondPenetration;
   j["drift_m"] = r.drift;
   j["max_energy_gain_j"] = r.maxEnergyGain;
@@ -156,6 +158,7 @@ nlohmann::json resultToJson(const RunResult& r) {
           {"max_angle", r.maxAngle},
           {"max_penetration", r.maxPenetration},
           {"max_held_penetration", r.maxHeldPenetration},
+          {"max_found_penetration", r.maxFoundPenetration},
           {"last_second_penetration", r.lastSecondPenetration},
           {"drift", r.drift},
           {"start_energy", r.startEnergy},
@@ -181,6 +184,7 @@ RunResult resultFromJson(const nlohmann::json& j) {
   r.maxAngle = j.at("max_angle");
   r.maxPenetration = j.at("max_penetration");
   r.maxHeldPenetration = j.value("max_held_penetration", 0.0);  // files from before it
+  r.maxFoundPenetration = j.value("max_found_penetration", 0.0);
   r.lastSecondPenetration = j.at("last_second_penetration");
   r.drift = j.at("drift");
   r.startEnergy = j.at("start_energy");

@@ -458,6 +458,7 @@ void summarizeFrames(RunResult& r, double dt) {
     r.maxAngle = std::max(r.maxAngle, rec.joints.angle);
     r.maxPenetration = std::max(r.maxPenetration, rec.penetration);
     r.maxHeldPenetration = std::max(r.maxHeldPenetration, rec.heldPenetration);
+    r.maxFoundPenetration = std::max(r.maxFoundPenetration, rec.foundPenetration);
     const double energy = rec.kineticEnergy + rec.potentialEnergy;
     r.maxEnergyGain = std::max(r.maxEnergyGain, energy - r.startEnergy);
     lowestEnergy = std::min(lowestEnergy, energy);
@@ -593,6 +594,8 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
             rec.steppedByOde |= stats.stepper == dBlockStepperOde;
             ownCollideSeconds = stats.collideSeconds;
           }
+          if (ownCollision)
+            rec.foundPenetration = std::max(rec.foundPenetration, dWorldGetBlockDeepestContact(w));
           break;
         }
         case Stepper::Kind::Particles:  // runParticles() steps these

@@ -93,6 +93,10 @@ struct FrameRecord {
   double penetration = 0.0;  // deepest contact, m
   // Deepest contact whose pair touched at the collision before (Scene::deepestHeldContact), m.
   double heldPenetration = 0.0;
+  // blockstep colliding itself: the deepest point its own collision found
+  // within the frame, at any sub-step (dWorldGetBlockDeepestContact), m.
+  // The measure above sees only the frame's end; 0 for the others.
+  double foundPenetration = 0.0;
   int contacts = 0;
   double kineticEnergy = 0.0;
   double potentialEnergy = 0.0;  // of gravity, from the world's origin
@@ -118,6 +122,7 @@ struct RunResult {
   double maxSeparation = 0.0, rmsSeparation = 0.0, maxAngle = 0.0;
   double maxPenetration = 0.0;
   double maxHeldPenetration = 0.0;     // the deepest contact the stepper had a step to act on
+  double maxFoundPenetration = 0.0;    // FrameRecord::foundPenetration's largest
   double lastSecondPenetration = 0.0;  // mean deepest contact over the last second
   double drift = 0.0;                  // the probe body's distance from its start, m
   // Mechanical energy (kinetic plus gravity's potential) before the first

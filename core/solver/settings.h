@@ -304,7 +304,11 @@ struct StepStats {
   int islands = 0;
   int blocks = 0;
   int rows = 0;
-  double collideSeconds = 0.0;            // the world's own collision (World::collide)
+  double collideSeconds = 0.0;  // the world's own collision (World::collide)
+  // The deepest point (m, >= 0) the world's own collision found in the
+  // step, at any of its parts (collision every sub-step): what the
+  // solver was handed, which a measure at the step's end alone misses.
+  double deepestFound = 0.0;
   double solveSeconds = 0.0;              // the sub-steps: integration, prepare, sweeps, relax
   double stepSeconds = 0.0;               // the whole step
   std::vector<ResidualSample> residuals;  // when recorded

@@ -481,6 +481,7 @@ void World::step(double h) {
     stats_.residuals.reserve(static_cast<std::size_t>(Solver::mostSubsteps(settings_)) *
                              settings_.iterations);
   stats_.brokenJoints.reserve(joints_.size());
+  stats_.deepestFound = 0.0;
 
   if (collision_.everySubstep && settings_.substeps > 1) {
     stepCollidingEachSubstep(h);

@@ -179,7 +179,12 @@ void World::collide(double h) {
     }
   }
   std::sort(jointedPairs_.begin(), jointedPairs_.end());
+  const std::size_t before = contacts_.size();
   collider_.collide(shapes_, bodies_, collision_, jointedPairs_, h, contacts_);
+  for (std::size_t k = before; k < contacts_.size(); ++k) {
+    for (int i = 0; i < contacts_[k].pointCount; ++i)
+      stats_.deepestFound = std::max(stats_.deepestFound, -contacts_[k].points[i].separation);
+  }
 }
 
 // Tangents, body-fixed anchors, and the impulses of the matching points of

@@ -381,6 +381,38 @@ TEST(ConvexWorld, CollidingEverySubstepAppliesForcesOverTheWholeStep) {
   EXPECT_EQ(world.lastStepStats().substeps, 4);
 }
 
+// lastStepStats().deepestFound: the deepest point the world's own
+// collision found in the step, at any part. Two balls pressed 8 and 12 mm
+// into the ground (past the 5 mm slop), no gravity: each step's collision
+// at its start finds the deeper ball exactly where it is (a ball against a
+// plane is exact), the later parts only shallower as the contacts push
+// out, so the step reports its start depth; pushed out, it reports less.
+TEST(ConvexWorld, TheStepReportsTheDeepestContactItsCollisionFound) {
+  for (const bool everySubstep : {false, true}) {
+    SCOPED_TRACE(everySubstep ? "colliding every sub-step" : "colliding once a step");
+    World world;
+    world.setSettings(SolverSettings::subStepped(4));
+    world.collisionSettings().everySubstep = everySubstep;
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    const double r = 0.1;
+    std::vector<BodyId> balls;
+    for (const double depth : {0.008, 0.012}) {
+      balls.push_back(world.createBody(test::sphereBody(Vec3(balls.size(), 0, r - depth), 1.0, r)));
+      world.addShape(Shape::sphere(balls.back(), r));
+    }
+    EXPECT_EQ(world.lastStepStats().deepestFound, 0.0) << "nothing found before a step";
+    double expected = 0.0;
+    for (int step = 0; step < 6; ++step) {
+      expected = 0.0;
+      for (BodyId b : balls)
+        expected = std::max(expected, r - world.body(b).position.z());
+      world.step(1.0 / 60.0);
+      EXPECT_NEAR(world.lastStepStats().deepestFound, expected, 1e-12) << "step " << step;
+    }
+    EXPECT_LT(expected, 0.012 - 1e-4) << "the balls should have been pushed out meanwhile";
+  }
+}
+
 // Colliding every sub-step, a step takes shorter parts (down to
 // maxSubstepFactor times) while a touching body turns its surface more
 // than maxTurnPerSubstep a part: the contacts found at a part's start are

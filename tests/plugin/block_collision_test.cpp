@@ -165,6 +165,20 @@ TEST(OdeBlockCollision, CollidingEverySubstepStopsAFastBallAtTheWall) {
   EXPECT_LT(deepestIntoWall(dBlockCollideEverySubstep), 1e-3);
 }
 
+// dWorldGetBlockDeepestContact: the deepest point blockstep's own
+// collision found in the last step. A ball 8 mm into the ground, no
+// gravity: the step's first collision finds it exactly that deep.
+TEST(OdeBlockCollision, TheDeepestContactFoundInAStepIsReported) {
+  CollidedScene c;
+  dWorldSetGravity(c.scene.world, 0, 0, 0);
+  dWorldSetBlockCollision(c.scene.world, c.space, &c.surface, dBlockCollideEverySubstep);
+  c.body(0, 0, 0.1 - 0.008, dCreateSphere(c.space, 0.1));
+  EXPECT_EQ(dWorldGetBlockDeepestContact(c.scene.world), 0.0) << "not stepped yet";
+  c.run(1);
+  EXPECT_NEAR(dWorldGetBlockDeepestContact(c.scene.world), 0.008, 1e-9);
+  EXPECT_EQ(dWorldGetBlockDeepestContact(nullptr), 0.0);
+}
+
 // dBlockSetColliders: ODE's own dCollide, with the core's collision for
 // pairs with a convex geom or a cylinder. The colliders stay in ODE's
 // table for the process (until dCloseODE), so the checks run in a child

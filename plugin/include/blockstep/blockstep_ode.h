@@ -225,6 +225,12 @@ typedef struct dBlockStepStats {
 } dBlockStepStats;
 /* Returns 1 and fills stats, 0 for a world blockstep has not seen. */
 ODE_API int dWorldGetBlockStepStats(dWorldID w, dBlockStepStats* stats);
+/* The deepest contact point (m, >= 0) blockstep's own collision
+ * (dWorldSetBlockCollision) found in the last step of w, at any of the
+ * step's collisions (every sub-step with dBlockCollideEverySubstep): how
+ * deep the solver let shapes go within the step, which a depth measured
+ * after the step misses. 0 without that collision or before a step. */
+ODE_API dReal dWorldGetBlockDeepestContact(dWorldID w);
 /* Copies up to capacity residuals (largest and RMS over rows, per sweep)
  * of the last step; returns how many there were. Recorded while a
  * tolerance is set or dWorldSetBlockRecordResiduals is on. */
