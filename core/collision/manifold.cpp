@@ -30,6 +30,14 @@ std::uint32_t mixedFeatureId(std::uint64_t x) {
 // feature point) or a hull's vertices within the margin.
 constexpr int kMaxReduced = 2 * kMaxFeaturePoints;
 
+// A point this close to touching (m) touches, for reduceToFour: a face
+// resting on a face clips to points micrometres either side of zero. At
+// zero itself, a hull's face on another's kept the four points just in,
+// all on one side of the patch, and left out its far corner, 0.005 mm
+// apart: the hull, spinning, rocked onto that corner and went 7.8 mm
+// into the other (the 1,000-shape pile).
+constexpr double kTouching = 1e-4;
+
 int reduceToFour(const Vec3* pos, const double* sep, int n, int* keep) {
   // Points that touch come before points still apart within the margin:
   // with four or more touching, the four are chosen among them. A hull
@@ -41,14 +49,14 @@ int reduceToFour(const Vec3* pos, const double* sep, int n, int* keep) {
   if (n > 4) {
     int touching = 0;
     for (int i = 0; i < n; ++i)
-      touching += sep[i] <= 0.0 ? 1 : 0;
+      touching += sep[i] <= kTouching ? 1 : 0;
     if (touching >= 4 && touching < n) {
       Vec3 p[kMaxReduced];
       double s[kMaxReduced];
       int index[kMaxReduced];
       int k = 0;
       for (int i = 0; i < n && k < kMaxReduced; ++i) {
-        if (sep[i] > 0.0) continue;
+        if (sep[i] > kTouching) continue;
         p[k] = pos[i];
         s[k] = sep[i];
         index[k++] = i;

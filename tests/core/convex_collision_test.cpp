@@ -256,6 +256,20 @@ TEST(ConvexCollision, ReducingToFourPrefersPointsThatTouchToPointsApart) {
   const double fewer[5] = {0.0, -0.00731, 0.001, 0.00033, -0.00654};
   ASSERT_EQ(reduceToFour(pos, fewer, 5, keep), 4);
   EXPECT_NE(std::find(keep, keep + 4, 3), keep + 4);
+  // A face flat on a face: corners and points between them a few
+  // micrometres either side of touching all touch, and the four kept span
+  // the patch: the far corner 5 um apart among them (taken for apart, it
+  // was left out for points along one side, and a spinning hull rocked
+  // onto it 7.8 mm deep in the pile).
+  const Vec3 flat[6] = {Vec3(0, 0, 0),   Vec3(0.2, 0, 0),     Vec3(0.2, 0.1, 0),
+                        Vec3(0, 0.1, 0), Vec3(0.05, 0.02, 0), Vec3(0.02, 0.08, 0)};
+  const double flatSep[6] = {-3e-5, -2e-5, 5e-6, -1e-5, -2.5e-5, -2e-5};
+  ASSERT_EQ(reduceToFour(flat, flatSep, 6, keep), 4);
+  std::sort(keep, keep + 4);
+  EXPECT_EQ(keep[0], 0);
+  EXPECT_EQ(keep[1], 1);
+  EXPECT_EQ(keep[2], 2);
+  EXPECT_EQ(keep[3], 3);
 }
 
 TEST(ConvexCollision, CrossedBoxEdgesGiveOnePointAtTheClosedFormDepth) {
