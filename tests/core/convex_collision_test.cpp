@@ -923,6 +923,10 @@ TEST(ConvexCollision, ACylinderStandingAgainstABoxEdgeIsNotTakenForDeep) {
               1e3 * leastOverlap);
   EXPECT_GE(deepest(m), -leastOverlap - 1e-9);
   EXPECT_GT(deepest(m), -1e-4);
+  // And touching, not taken for apart: GJK finds the two overlapping.
+  ASSERT_TRUE(
+      coreDistance(PosedConvex(box, boxPose), PosedConvex(cylinder, cylinderPose)).overlapping);
+  EXPECT_LE(deepest(m), 0.0);
 }
 
 TEST(ConvexCollision, RoundShapesTouchingAtTheirSidesKeepTheirDepth) {
