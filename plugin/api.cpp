@@ -829,6 +829,30 @@ int dWorldGetBlockResidualHistory(dWorldID w, dReal* maxima, dReal* rms, int cap
   });
 }
 
+void dWorldSetBlockRecordStageEnergy(dWorldID w, int on) {
+  guarded(__func__, [&] { LockedWorld(w).settings().recordStageEnergy = on != 0; });
+}
+
+int dWorldGetBlockStageEnergy(dWorldID w, int* substep, int* stage, dReal* kinetic,
+                              dReal* potential, int capacity) {
+  return guarded(__func__, 0, [&] {
+    const std::shared_ptr<ode::WorldRecord> record = Registry::instance().world(w);
+    const std::shared_ptr<WorldState> state = findState(w);
+    if (!state || !record) return 0;
+    std::lock_guard lock(record->mutex);
+    if (!record->bridge || state->stepper != dBlockStepperBlockstep) return 0;
+    const auto& samples = record->bridge->stats().stageEnergy;
+    for (int i = 0; i < capacity && i < static_cast<int>(samples.size()); ++i) {
+      const StageEnergySample& e = samples[static_cast<std::size_t>(i)];
+      if (substep) substep[i] = e.substep;
+      if (stage) stage[i] = static_cast<int>(e.after);
+      if (kinetic) kinetic[i] = static_cast<dReal>(e.kinetic);
+      if (potential) potential[i] = static_cast<dReal>(e.potential);
+    }
+    return static_cast<int>(samples.size());
+  });
+}
+
 // The text lives in the world's state until its next step (or the world's
 // destruction), as before.
 const char* dWorldGetBlockStepMessage(dWorldID w) {

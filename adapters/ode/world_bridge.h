@@ -92,6 +92,9 @@ struct BridgeSettings {
   // Threads sweeping independent islands (SolverSettings::threads; unset:
   // the solver's own, 1).
   std::optional<int> threads;
+  // Record each sub-step's energy after every stage
+  // (SolverSettings::recordStageEnergy), whatever the solver.
+  bool recordStageEnergy = false;
   double runawayEnergyGain = SolverSettings{}.runawayEnergyGain;
   double runawaySpeed = SolverSettings{}.runawaySpeed;
   // World::setContactPersistence: a pair ODE's collider gives one or two

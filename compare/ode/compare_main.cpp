@@ -453,6 +453,14 @@ int main(int argc, char** argv) {
                  "print every contact deeper than this (mm) at each frame's collision, with "
                  "both bodies' mass and motion, to stderr: where a deep contact came from")
       ->check(CLI::Range(0.0, 1e6));
+  std::vector<int> traceEnergy;
+  app.add_option("--trace-energy", traceEnergy,
+                 "FIRST[,LAST]: print blockstep's kinetic and potential energy after each "
+                 "stage of every sub-step of these frames to stderr, and what each stage changed "
+                 "of the total: where a step gains energy")
+      ->delimiter(',')
+      ->expected(1, 2)
+      ->check(CLI::Range(0, 1000000));
   bool grid = false;
   app.add_flag("--grid", grid,
                "error versus cost: quickstep 10/20/50 iterations x 1/2/4/10 sub-steps and "
@@ -487,6 +495,10 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   if (grid) steppers = costGrid();
   options.traceDepth = 1e-3 * traceDepthMm;
+  if (!traceEnergy.empty()) {
+    options.traceEnergyFrom = traceEnergy.front();
+    options.traceEnergyTo = traceEnergy.back();
+  }
 
   dInitODE2(0);
   // quickstep and direct are ODE's own here, whatever BLOCKSTEP_REPLACE says.

@@ -503,6 +503,27 @@ void traceDeepPairs(const Scene& scene, const Stepper& stepper, int frame, int c
   }
 }
 
+// RunOptions::traceEnergyFrom: the energy after each stage of every
+// sub-step of frame f's step, and what the stage changed of the total,
+// one line each.
+void traceStageEnergy(dWorldID w, const Scene& scene, const Stepper& stepper, int frame) {
+  static const char* const kStage[] = {"forces", "warm start", "sweeps", "positions", "relax"};
+  const int n = dWorldGetBlockStageEnergy(w, nullptr, nullptr, nullptr, nullptr, 0);
+  std::vector<int> substep(n), stage(n);
+  std::vector<dReal> kinetic(n), potential(n);
+  dWorldGetBlockStageEnergy(w, substep.data(), stage.data(), kinetic.data(), potential.data(), n);
+  for (int i = 0; i < n; ++i) {
+    const double total = kinetic[i] + potential[i];
+    const double change = i > 0 ? total - (kinetic[i - 1] + potential[i - 1]) : 0.0;
+    const char* name = stage[i] >= 0 && stage[i] < 5 ? kStage[stage[i]] : "?";
+    std::fprintf(stderr,
+                 "energy %s %s frame %d sub-step %d %-10s kinetic %.6g J potential %.6g J "
+                 "total %.6g J (%+.3g)\n",
+                 scene.name().c_str(), stepper.label.c_str(), frame, substep[i], name, kinetic[i],
+                 potential[i], total, change);
+  }
+}
+
 }  // namespace
 
 RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
@@ -587,7 +608,11 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
           break;
         }
         case Stepper::Kind::Block: {
+          const bool traceEnergy = options.traceEnergyFrom >= 0 && f >= options.traceEnergyFrom &&
+                                   f <= std::max(options.traceEnergyFrom, options.traceEnergyTo);
+          dWorldSetBlockRecordStageEnergy(w, traceEnergy ? 1 : 0);
           ok = dWorldBlockStep(w, h);
+          if (traceEnergy) traceStageEnergy(w, scene, stepper, f);
           dBlockStepStats stats;
           if (dWorldGetBlockStepStats(w, &stats)) {
             rec.handedToOde += stats.handedToOde;

@@ -183,6 +183,11 @@ struct RunOptions {
   // with both bodies' mass and motion, to stderr (0: none): where a run's
   // deepest contact came from.
   double traceDepth = 0.0;
+  // Print blockstep's kinetic and potential energy after each stage of
+  // every sub-step (dWorldGetBlockStageEnergy) of frames [from, to] to
+  // stderr (from < 0: none): which stage of a step gains energy.
+  int traceEnergyFrom = -1;
+  int traceEnergyTo = -1;
 };
 
 // Appends the scene's body poses to r.poses when frame `done` (frames

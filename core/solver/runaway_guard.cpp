@@ -80,6 +80,10 @@ double kineticEnergy(const Body& b) {
   return energyAt(b, b.linearVelocity, b.angularVelocity);
 }
 
+double kineticEnergy(const Body& b, const Vec3& v, const Vec3& w) {
+  return energyAt(b, v, w);
+}
+
 void RunawayGuard::begin(const std::vector<Body>& bodies,
                          const std::vector<std::int32_t>& groupOfBody, int groups,
                          const Vec3& gravity, double h) {

@@ -147,5 +147,7 @@ class RunawayGuard {
 };
 
 double kineticEnergy(const Body& b);
+// ... moving at (v, w) in its current orientation.
+double kineticEnergy(const Body& b, const Vec3& v, const Vec3& w);
 
 }  // namespace blockstep

@@ -222,6 +222,12 @@ struct SolverSettings {
   // Record the residual after every sweep (costs one extra pass over the
   // rows per sweep; on automatically while a tolerance is set).
   bool recordResiduals = false;
+  // Record the kinetic and potential energy of the bodies being stepped
+  // after each stage of every sub-step (StepStats::stageEnergy): which
+  // stage of a step gains or loses energy (its forces, warm start,
+  // sweeps, position update or relax). Costs a pass over the bodies a
+  // stage; the step itself is the same.
+  bool recordStageEnergy = false;
 
   // The paper's solver: one step, k block iterations, each joint's
   // Baumgarte ERP and CFM, no relax, no warm starting (the default).
@@ -277,6 +283,25 @@ struct ResidualSample {
   double rms = 0.0;
 };
 
+// The energy of the bodies a sub-step moves, after one of its stages
+// (SolverSettings::recordStageEnergy). Islands turning at different rates
+// may be stepped apart with their own sub-step counts (`substeps`), one
+// after the other, each summing its own bodies.
+struct StageEnergySample {
+  enum class After : std::uint8_t {
+    Forces,     // gravity, forces and damping added to the velocities
+    WarmStart,  // the last sub-step's impulses applied again
+    Sweeps,     // the velocity sweeps (and sinking groups), with position correction
+    Positions,  // the positions moved with the new velocities
+    Relax,      // the bias-free sweeps
+  };
+  std::int32_t substep = 0;   // 0-based, within the step
+  std::int32_t substeps = 0;  // of the islands stepped together
+  After after = After::Forces;
+  double kinetic = 0.0;    // J, from the velocities as the stage left them
+  double potential = 0.0;  // J, in the world's gravity: -m g . x over bodies it acts on
+};
+
 // An island the step left non-finite or running away (RunawayGuard): the
 // World put its bodies back as they were before the step.
 struct RunawayIsland {
@@ -309,10 +334,11 @@ struct StepStats {
   // step, at any of its parts (collision every sub-step): what the
   // solver was handed, which a measure at the step's end alone misses.
   double deepestFound = 0.0;
-  double solveSeconds = 0.0;              // the sub-steps: integration, prepare, sweeps, relax
-  double stepSeconds = 0.0;               // the whole step
-  std::vector<ResidualSample> residuals;  // when recorded
-  std::vector<JointId> brokenJoints;      // joints that broke in this step
+  double solveSeconds = 0.0;                   // the sub-steps: integration, prepare, sweeps, relax
+  double stepSeconds = 0.0;                    // the whole step
+  std::vector<ResidualSample> residuals;       // when recorded
+  std::vector<StageEnergySample> stageEnergy;  // when recorded, in the order taken
+  std::vector<JointId> brokenJoints;           // joints that broke in this step
   // Islands the step left non-finite or running away, restored to before
   // the step (their bodies did not move), and their bodies and joints.
   std::vector<RunawayIsland> runaways;

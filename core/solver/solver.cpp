@@ -265,6 +265,7 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
   stats.preparedSubsteps = 0;
   stats.sinkingGroups = 0;
   stats.residuals.clear();
+  stats.stageEnergy.clear();
   stats.brokenJoints.clear();
   stats.solveSeconds = 0.0;
 
@@ -354,9 +355,11 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
   // without an energy limit only non-finite states and speeds are checked.
   const bool countEnergy = s.runawayEnergyGain > 0.0 && std::isfinite(s.runawayEnergyGain);
   IslandBlocks* islands = nullptr;
+  using After = StageEnergySample::After;
   for (int sub = 0; sub < substeps; ++sub) {
     sinceStepStart_ = sub * h;
     integrateVelocities(in, s, h);
+    recordStageEnergy(in, s, After::Forces, sub, substeps, stats);
     if (carriesRows(s, sub, h)) {
       carryRows(in, s, h);
     } else {
@@ -368,6 +371,7 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
       guard_.addCorrections(blocks_, rows_, bodies_, islandStart_, islandBegin_, islandEnd_, in.h,
                             islands);
     warmStart();
+    recordStageEnergy(in, s, After::WarmStart, sub, substeps, stats);
     // Each sub-step gets its share of what remains of the time budget;
     // once it is spent (prepare alone can spend it) a sub-step still runs
     // one sweep. kNoBudget: no budget set. (The clock is read per sub-step
@@ -379,10 +383,13 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
             : kNoBudget;
     stats.iterations += solve(s, sub, subBudget, stats);
     solveSinkingContacts(in, s, h, stats);
+    recordStageEnergy(in, s, After::Sweeps, sub, substeps, stats);
     if (s.maxTurnPerSubstep > 0.0 || s.maxTurnPerRefresh > 0.0) notePeakTurnRate(in);
     integratePositions(in, s, h);
+    recordStageEnergy(in, s, After::Positions, sub, substeps, stats);
     if (s.relaxIterations > 0 && s.relaxCancelsDrift) relaxAgainstDrift(in, h);
     relax(s, h);
+    recordStageEnergy(in, s, After::Relax, sub, substeps, stats);
     if (countEnergy) {
       guard_.addWork(blocks_, rows_, bodies_, islandStart_, islandBegin_, islandEnd_);
       if (sub == substeps - 1)
@@ -397,6 +404,29 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
     if (contactIslandRows_ > 0) contactIslands_.capImpactImpulses(rows_);
     storeImpulses(in, h);
   }
+}
+
+// The energy of the bodies this class steps, from the solver's velocities
+// (integratePositions hands them to the bodies; until then the bodies
+// keep the sub-step's start).
+void Solver::recordStageEnergy(const StepInput& in, const SolverSettings& s,
+                               StageEnergySample::After after, int sub, int substeps,
+                               StepStats& stats) {
+  if (!s.recordStageEnergy) return;
+  StageEnergySample sample;
+  sample.substep = sub;
+  sample.substeps = substeps;
+  sample.after = after;
+  forEachBody(
+      static_cast<int>(in.bodies.size()),
+      [&](std::int32_t i) {
+        const Body& b = in.bodies[i];
+        if (!b.alive || !b.isDynamic()) return;
+        sample.kinetic += kineticEnergy(b, bodies_[i].v, bodies_[i].w);
+        if (b.gravity) sample.potential -= b.mass * in.gravity.dot(b.position);
+      },
+      true);
+  stats.stageEnergy.push_back(sample);
 }
 
 void Solver::buildIslands(const StepInput& in, const SolverSettings& s) {

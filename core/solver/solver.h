@@ -108,6 +108,8 @@ class Solver {
   };
   const SoftnessAtStep& ratesOf(const Softness& soft, double h, SoftnessCache& cache) const;
   void integrateVelocities(const StepInput& in, const SolverSettings& s, double h);
+  void recordStageEnergy(const StepInput& in, const SolverSettings& s,
+                         StageEnergySample::After after, int sub, int substeps, StepStats& stats);
   void prepare(const StepInput& in, const SolverSettings& s, double h);
   bool carriesRows(const SolverSettings& s, int sub, double h);
   void carryRows(const StepInput& in, const SolverSettings& s, double h);

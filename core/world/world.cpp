@@ -545,6 +545,7 @@ void World::stepCollidingEachSubstep(double h) {
   stats_.iterations = 0;
   stats_.collideSeconds = stats_.solveSeconds = stats_.stepSeconds = 0.0;
   stats_.residuals.clear();
+  stats_.stageEnergy.clear();
   stats_.brokenJoints.clear();
   stats_.runaways.clear();
   stats_.runawayBodies.clear();
@@ -608,6 +609,12 @@ void World::stepCollidingEachSubstep(double h) {
       r.substep = k - stats_.retakenParts;
       stats_.residuals.push_back(r);
     }
+    // Each part is one sub-step of the whole step (a retaken one's
+    // samples are left out, as its motion is).
+    for (StageEnergySample e : partStats_.stageEnergy) {
+      e.substep = k - stats_.retakenParts;
+      stats_.stageEnergy.push_back(e);
+    }
     stats_.brokenJoints.insert(stats_.brokenJoints.end(), partStats_.brokenJoints.begin(),
                                partStats_.brokenJoints.end());
     if (partStats_.runaways.empty()) continue;
@@ -629,6 +636,8 @@ void World::stepCollidingEachSubstep(double h) {
     }
   }
   stats_.substeps = k - stats_.retakenParts;
+  for (StageEnergySample& e : stats_.stageEnergy)
+    e.substeps = stats_.substeps;
   for (const auto& [id, type] : heldTypes_)
     bodies_[id].type = type;
   for (Body& b : bodies_) {

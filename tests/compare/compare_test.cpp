@@ -606,6 +606,28 @@ TEST(CompareRuns, AContactOnAJointedBodyGivesNoMoreUnderItsLoadThanUnderItsWeigh
 // light, the plank at the support under the crate was pushed about until
 // the runaway guard handed the bridge to ODE (113 of 300 frames, its
 // hinges 193 mm apart).
+// --trace-energy: a line per stage of every sub-step of the frames asked
+// for, and none of the others.
+TEST(CompareRuns, TheEnergyTraceHasALinePerStageOfEverySubstepOfItsFrames) {
+  RunOptions o;
+  o.frames = 3;
+  o.traceEnergyFrom = 1;
+  o.traceEnergyTo = 1;
+  auto s = makeScene("chain");
+  testing::internal::CaptureStderr();
+  const RunResult r = run(*s, parseStepper("blockstep:substep:4"), o);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(r.framesRun, 3);
+  int lines = 0;
+  for (std::size_t at = err.find("energy chain"); at != std::string::npos;
+       at = err.find("energy chain", at + 1))
+    ++lines;
+  EXPECT_EQ(lines, 4 * 5);
+  EXPECT_NE(err.find("frame 1 sub-step 3 relax"), std::string::npos);
+  EXPECT_EQ(err.find("frame 0 "), std::string::npos);
+  EXPECT_EQ(err.find("frame 2 "), std::string::npos);
+}
+
 TEST(CompareRuns, TheCratedBridgeKeepsItsHingesUnderTheDropIn) {
   RunOptions o;
   o.frames = 300;

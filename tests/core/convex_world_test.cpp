@@ -735,5 +735,55 @@ TEST(ConvexWorld, APartWhoseSolveSendsABodyPastItsReachIsTakenAgainReachingFarth
   EXPECT_GT(retaken.gapAfterStrike, -0.0005);
   EXPECT_GT(retaken.gapAfterNext, -0.0005);
 }
+// With SolverSettings::recordStageEnergy each sub-step reports the bodies'
+// energy after its five stages, in order. A ball starting 8 mm into the
+// ground at rest: gravity gives it (g h)^2 / 2 per kilogram; the sweeps
+// stop that and send it up out of the ground (position correction); the
+// position update lifts it at that speed; and relax takes the speed
+// back, so the push-out becomes height, not motion (the point of the
+// relax stage, as in Box2D v3's soft step).
+TEST(ConvexWorld, EachSubstepReportsItsStagesEnergyAndRelaxTakesBackThePushOut) {
+  World world;
+  SolverSettings settings = SolverSettings::subStepped(4);
+  settings.recordStageEnergy = true;
+  world.setSettings(settings);
+  world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+  const double r = 0.1, m = 2.0, z0 = r - 0.008, h = 1.0 / 240.0, g = 9.81;
+  const BodyId ball = world.createBody(test::sphereBody(Vec3(0, 0, z0), m, r));
+  world.addShape(Shape::sphere(ball, r));
+  world.step(4 * h);
+  const std::vector<StageEnergySample>& e = world.lastStepStats().stageEnergy;
+  ASSERT_EQ(e.size(), 20u);
+  using After = StageEnergySample::After;
+  for (std::size_t k = 0; k < e.size(); ++k) {
+    EXPECT_EQ(e[k].substep, static_cast<int>(k / 5)) << k;
+    EXPECT_EQ(e[k].substeps, 4) << k;
+    EXPECT_EQ(e[k].after, static_cast<After>(k % 5)) << k;
+  }
+  EXPECT_NEAR(e[0].kinetic, 0.5 * m * (g * h) * (g * h), 1e-12);
+  EXPECT_NEAR(e[0].potential, m * g * z0, 1e-12);
+  for (int sub = 0; sub < 4; ++sub) {
+    SCOPED_TRACE(sub);
+    const StageEnergySample* s = &e[5 * sub];
+    EXPECT_EQ(s[0].potential, s[2].potential) << "nothing moves before the position update";
+    // The speed the position update lifted the ball at is the one the
+    // sweeps left it: the push-out, straight up.
+    const double up = (s[3].potential - s[2].potential) / (m * g * h);
+    EXPECT_GT(up, 0.01) << "m/s";
+    EXPECT_NEAR(s[2].kinetic, 0.5 * m * up * up, 1e-9);
+    EXPECT_EQ(s[3].kinetic, s[2].kinetic) << "moving does not change the velocities";
+    EXPECT_LT(s[4].kinetic, 1e-6 * s[2].kinetic) << "relax took the push-out's speed back";
+    EXPECT_EQ(s[4].potential, s[3].potential) << "relax moves nothing";
+  }
+  const double z = world.body(ball).position.z();
+  EXPECT_NEAR(e.back().potential, m * g * z, 1e-12);
+  EXPECT_GT(z, z0 + 1e-4) << "pushed out";
+  // Off, nothing is recorded.
+  settings.recordStageEnergy = false;
+  world.setSettings(settings);
+  world.step(4 * h);
+  EXPECT_TRUE(world.lastStepStats().stageEnergy.empty());
+}
+
 }  // namespace
 }  // namespace blockstep

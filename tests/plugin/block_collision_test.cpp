@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 #include "ode_twin.h"
 
@@ -177,6 +178,50 @@ TEST(OdeBlockCollision, TheDeepestContactFoundInAStepIsReported) {
   c.run(1);
   EXPECT_NEAR(dWorldGetBlockDeepestContact(c.scene.world), 0.008, 1e-9);
   EXPECT_EQ(dWorldGetBlockDeepestContact(nullptr), 0.0);
+}
+
+// dWorldSetBlockRecordStageEnergy: each sub-step's energy after its five
+// stages. A box falling free under semi-implicit Euler (section 3): after
+// sub-step k's forces it moves at g h (k + 1), and after its position
+// update it has fallen g h^2 (k + 1)(k + 2) / 2; no other stage changes
+// anything.
+TEST(OdeBlockCollision, EachSubstepsEnergyAfterEveryStageIsReported) {
+  OdeScene scene;
+  dWorldSetBlockSubsteppedSolver(scene.world, 4);
+  const double m = 3.0, z0 = 2.0, g = 9.81, h = kStep / 4;
+  scene.box(0, 0, z0, m);
+  EXPECT_EQ(dWorldGetBlockStageEnergy(scene.world, nullptr, nullptr, nullptr, nullptr, 0), 0)
+      << "not stepped yet";
+  dWorldSetBlockRecordStageEnergy(scene.world, 1);
+  ASSERT_EQ(dWorldBlockStep(scene.world, kStep), 1);
+  const int n = dWorldGetBlockStageEnergy(scene.world, nullptr, nullptr, nullptr, nullptr, 0);
+  ASSERT_EQ(n, 20);
+  std::vector<int> substep(n), stage(n);
+  std::vector<dReal> kinetic(n), potential(n);
+  ASSERT_EQ(dWorldGetBlockStageEnergy(scene.world, substep.data(), stage.data(), kinetic.data(),
+                                      potential.data(), n),
+            n);
+  for (int i = 0; i < n; ++i) {
+    const int k = i / 5;
+    EXPECT_EQ(substep[i], k);
+    EXPECT_EQ(stage[i], i % 5);
+    const double v = g * h * (k + 1);
+    EXPECT_NEAR(kinetic[i], 0.5 * m * v * v, 1e-9) << i;
+    const int moves = stage[i] >= dBlockStagePositions ? k + 1 : k;
+    const double fallen = 0.5 * g * h * h * moves * (moves + 1);
+    EXPECT_NEAR(potential[i], m * g * (z0 - fallen), 1e-9) << i;
+  }
+  // Room for fewer: the first ones only, and how many there were.
+  int stages[3] = {-1, -1, -1};
+  EXPECT_EQ(dWorldGetBlockStageEnergy(scene.world, nullptr, stages, nullptr, nullptr, 2), n);
+  EXPECT_EQ(stages[0], dBlockStageForces);
+  EXPECT_EQ(stages[1], dBlockStageWarmStart);
+  EXPECT_EQ(stages[2], -1);
+  dWorldSetBlockRecordStageEnergy(scene.world, 0);
+  ASSERT_EQ(dWorldBlockStep(scene.world, kStep), 1);
+  EXPECT_EQ(dWorldGetBlockStageEnergy(scene.world, nullptr, nullptr, nullptr, nullptr, 0), 0)
+      << "recording off";
+  EXPECT_EQ(dWorldGetBlockStageEnergy(nullptr, nullptr, nullptr, nullptr, nullptr, 0), 0);
 }
 
 // dBlockSetColliders: ODE's own dCollide, with the core's collision for
