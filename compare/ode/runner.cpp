@@ -608,9 +608,11 @@ RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
           break;
         }
         case Stepper::Kind::Block: {
-          const bool traceEnergy = options.traceEnergyFrom >= 0 && f >= options.traceEnergyFrom &&
+          // Only when asked: the call would count in the solve time.
+          const bool tracing = options.traceEnergyFrom >= 0;
+          const bool traceEnergy = tracing && f >= options.traceEnergyFrom &&
                                    f <= std::max(options.traceEnergyFrom, options.traceEnergyTo);
-          dWorldSetBlockRecordStageEnergy(w, traceEnergy ? 1 : 0);
+          if (tracing) dWorldSetBlockRecordStageEnergy(w, traceEnergy ? 1 : 0);
           ok = dWorldBlockStep(w, h);
           if (traceEnergy) traceStageEnergy(w, scene, stepper, f);
           dBlockStepStats stats;
