@@ -507,15 +507,19 @@ void traceDeepPairs(const Scene& scene, const Stepper& stepper, int frame, int c
 // sub-step of frame f's step, and what the stage changed of the total,
 // one line each.
 void traceStageEnergy(dWorldID w, const Scene& scene, const Stepper& stepper, int frame) {
-  static const char* const kStage[] = {"forces", "warm start", "sweeps", "positions", "relax"};
+  static const char* const kStage[] = {"forces",    "warm start", "sweeps",
+                                       "positions", "relax",      "start"};
   const int n = dWorldGetBlockStageEnergy(w, nullptr, nullptr, nullptr, nullptr, 0);
   std::vector<int> substep(n), stage(n);
   std::vector<dReal> kinetic(n), potential(n);
   dWorldGetBlockStageEnergy(w, substep.data(), stage.data(), kinetic.data(), potential.data(), n);
   for (int i = 0; i < n; ++i) {
     const double total = kinetic[i] + potential[i];
-    const double change = i > 0 ? total - (kinetic[i - 1] + potential[i - 1]) : 0.0;
-    const char* name = stage[i] >= 0 && stage[i] < 5 ? kStage[stage[i]] : "?";
+    // From the sub-step's start on: islands stepped apart (their own
+    // sub-step counts) each begin their sub-steps with a start.
+    const bool start = stage[i] == dBlockStageStart || i == 0;
+    const double change = start ? 0.0 : total - (kinetic[i - 1] + potential[i - 1]);
+    const char* name = stage[i] >= 0 && stage[i] < 6 ? kStage[stage[i]] : "?";
     std::fprintf(stderr,
                  "energy %s %s frame %d sub-step %d %-10s kinetic %.6g J potential %.6g J "
                  "total %.6g J (%+.3g)\n",

@@ -223,10 +223,10 @@ struct SolverSettings {
   // rows per sweep; on automatically while a tolerance is set).
   bool recordResiduals = false;
   // Record the kinetic and potential energy of the bodies being stepped
-  // after each stage of every sub-step (StepStats::stageEnergy): which
-  // stage of a step gains or loses energy (its forces, warm start,
-  // sweeps, position update or relax). Costs a pass over the bodies a
-  // stage; the step itself is the same.
+  // at the start of every sub-step and after each of its stages
+  // (StepStats::stageEnergy): which stage of a step gains or loses
+  // energy (its forces, warm start, sweeps, position update or relax).
+  // Costs a pass over the bodies a stage; the step itself is the same.
   bool recordStageEnergy = false;
 
   // The paper's solver: one step, k block iterations, each joint's
@@ -283,10 +283,10 @@ struct ResidualSample {
   double rms = 0.0;
 };
 
-// The energy of the bodies a sub-step moves, after one of its stages
-// (SolverSettings::recordStageEnergy). Islands turning at different rates
-// may be stepped apart with their own sub-step counts (`substeps`), one
-// after the other, each summing its own bodies.
+// The energy of the bodies a sub-step moves, at its start or after one
+// of its stages (SolverSettings::recordStageEnergy). Islands turning at
+// different rates may be stepped apart with their own sub-step counts
+// (`substeps`), one after the other, each summing its own bodies.
 struct StageEnergySample {
   enum class After : std::uint8_t {
     Forces,     // gravity, forces and damping added to the velocities
@@ -294,6 +294,10 @@ struct StageEnergySample {
     Sweeps,     // the velocity sweeps (and sinking groups), with position correction
     Positions,  // the positions moved with the new velocities
     Relax,      // the bias-free sweeps
+    // The sub-step's start, recorded before its forces: each sub-step's
+    // samples begin with it, so one class's sub-steps read apart from
+    // another's stepped before or after it.
+    Start,
   };
   std::int32_t substep = 0;   // 0-based, within the step
   std::int32_t substeps = 0;  // of the islands stepped together

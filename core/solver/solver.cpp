@@ -358,6 +358,7 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
   using After = StageEnergySample::After;
   for (int sub = 0; sub < substeps; ++sub) {
     sinceStepStart_ = sub * h;
+    recordStageEnergy(in, s, After::Start, sub, substeps, stats);
     integrateVelocities(in, s, h);
     recordStageEnergy(in, s, After::Forces, sub, substeps, stats);
     if (carriesRows(s, sub, h)) {
@@ -417,12 +418,16 @@ void Solver::recordStageEnergy(const StepInput& in, const SolverSettings& s,
   sample.substep = sub;
   sample.substeps = substeps;
   sample.after = after;
+  // Until the sub-step's forces the velocities are the bodies' own (the
+  // last sub-step's relax handed them over, storeImpulses).
+  const bool atStart = after == StageEnergySample::After::Start;
   forEachBody(
       static_cast<int>(in.bodies.size()),
       [&](std::int32_t i) {
         const Body& b = in.bodies[i];
         if (!b.alive || !b.isDynamic()) return;
-        sample.kinetic += kineticEnergy(b, bodies_[i].v, bodies_[i].w);
+        sample.kinetic += atStart ? kineticEnergy(b, b.linearVelocity, b.angularVelocity)
+                                  : kineticEnergy(b, bodies_[i].v, bodies_[i].w);
         if (b.gravity) sample.potential -= b.mass * in.gravity.dot(b.position);
       },
       true);

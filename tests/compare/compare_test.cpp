@@ -607,7 +607,7 @@ TEST(CompareRuns, AContactOnAJointedBodyGivesNoMoreUnderItsLoadThanUnderItsWeigh
 // the runaway guard handed the bridge to ODE (113 of 300 frames, its
 // hinges 193 mm apart).
 // --trace-energy: a line per stage of every sub-step of the frames asked
-// for, and none of the others.
+// for (its start first), and none of the others.
 TEST(CompareRuns, TheEnergyTraceHasALinePerStageOfEverySubstepOfItsFrames) {
   RunOptions o;
   o.frames = 3;
@@ -622,7 +622,8 @@ TEST(CompareRuns, TheEnergyTraceHasALinePerStageOfEverySubstepOfItsFrames) {
   for (std::size_t at = err.find("energy chain"); at != std::string::npos;
        at = err.find("energy chain", at + 1))
     ++lines;
-  EXPECT_EQ(lines, 4 * 5);
+  EXPECT_EQ(lines, 4 * 6);
+  EXPECT_NE(err.find("frame 1 sub-step 0 start"), std::string::npos);
   EXPECT_NE(err.find("frame 1 sub-step 3 relax"), std::string::npos);
   EXPECT_EQ(err.find("frame 0 "), std::string::npos);
   EXPECT_EQ(err.find("frame 2 "), std::string::npos);

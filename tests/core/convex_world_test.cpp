@@ -753,18 +753,23 @@ TEST(ConvexWorld, EachSubstepReportsItsStagesEnergyAndRelaxTakesBackThePushOut) 
   world.addShape(Shape::sphere(ball, r));
   world.step(4 * h);
   const std::vector<StageEnergySample>& e = world.lastStepStats().stageEnergy;
-  ASSERT_EQ(e.size(), 20u);
+  ASSERT_EQ(e.size(), 24u);
   using After = StageEnergySample::After;
   for (std::size_t k = 0; k < e.size(); ++k) {
-    EXPECT_EQ(e[k].substep, static_cast<int>(k / 5)) << k;
+    EXPECT_EQ(e[k].substep, static_cast<int>(k / 6)) << k;
     EXPECT_EQ(e[k].substeps, 4) << k;
-    EXPECT_EQ(e[k].after, static_cast<After>(k % 5)) << k;
+    EXPECT_EQ(e[k].after, k % 6 == 0 ? After::Start : static_cast<After>(k % 6 - 1)) << k;
   }
-  EXPECT_NEAR(e[0].kinetic, 0.5 * m * (g * h) * (g * h), 1e-12);
-  EXPECT_NEAR(e[0].potential, m * g * z0, 1e-12);
+  EXPECT_EQ(e[0].kinetic, 0.0) << "at rest when the step starts";
+  EXPECT_NEAR(e[1].kinetic, 0.5 * m * (g * h) * (g * h), 1e-12);
+  EXPECT_NEAR(e[1].potential, m * g * z0, 1e-12);
   for (int sub = 0; sub < 4; ++sub) {
     SCOPED_TRACE(sub);
-    const StageEnergySample* s = &e[5 * sub];
+    if (sub > 0) {
+      EXPECT_EQ(e[6 * sub].kinetic, e[6 * sub - 1].kinetic) << "it starts where relax left it";
+      EXPECT_EQ(e[6 * sub].potential, e[6 * sub - 1].potential);
+    }
+    const StageEnergySample* s = &e[6 * sub + 1];
     EXPECT_EQ(s[0].potential, s[2].potential) << "nothing moves before the position update";
     // The speed the position update lifted the ball at is the one the
     // sweeps left it: the push-out, straight up.

@@ -1136,6 +1136,58 @@ TEST(Solver, EachIslandTakesTheSubstepsItsOwnTurnAsksFor) {
   EXPECT_EQ(twoThreads.bobVelocity, both.bobVelocity);
 }
 
+// Stepped apart, each class of islands records its own sub-steps, each
+// from its start: the circling box's 25 and the pendulum's 10, one class
+// after the other. A change read from one sample to the next stays within
+// a class (before the start was recorded, the box's first forces read as
+// the pendulum's relax minus the box's energy), and the classes' starts
+// and ends sum to the world's energy before and after the step, a
+// velocity set between steps included.
+TEST(Solver, EachClassOfIslandsRecordsItsSubstepsEnergyFromTheirStart) {
+  World world;
+  SolverSettings s = SolverSettings::subStepped(10);
+  s.recordStageEnergy = true;
+  world.setSettings(s);
+  const BodyId box = circlingBox(world), bob = slowPendulum(world);
+  auto energy = [&] {
+    double e = 0.0;
+    for (const BodyId id : {box, bob}) {
+      const Body& b = world.body(id);
+      e += test::kineticEnergy(b) - b.mass * world.gravity().dot(b.position);
+    }
+    return e;
+  };
+  world.step(1.0 / 60.0);  // the turn rates seen
+  world.setLinearVelocity(bob, Vec3(0, 1, 0));  // across the rod, set between steps
+  const double before = energy();
+  world.step(1.0 / 60.0);
+  const double after = energy();
+  using After = StageEnergySample::After;
+  const std::vector<StageEnergySample>& e = world.lastStepStats().stageEnergy;
+  ASSERT_EQ(e.size(), 6u * (10 + 25));
+  double starts = 0.0, ends = 0.0;
+  for (std::size_t i = 0; i < e.size(); i += 6) {
+    SCOPED_TRACE(i);
+    const int substeps = e[i].substeps;
+    ASSERT_TRUE(substeps == 10 || substeps == 25);
+    const int first = substeps == 10 ? 0 : 6 * 10;  // the pendulum's class goes first
+    EXPECT_EQ(e[i].substep, static_cast<int>(i - first) / 6);
+    EXPECT_EQ(e[i].after, After::Start);
+    for (std::size_t k = 1; k < 6; ++k) {
+      EXPECT_EQ(e[i + k].after, static_cast<After>(k - 1));
+      EXPECT_EQ(e[i + k].substeps, substeps);
+    }
+    const double start = e[i].kinetic + e[i].potential;
+    if (e[i].substep == 0)
+      starts += start;
+    else
+      EXPECT_NEAR(start, e[i - 1].kinetic + e[i - 1].potential, 1e-12) << "where its relax left it";
+    if (e[i].substep == substeps - 1) ends += e[i + 5].kinetic + e[i + 5].potential;
+  }
+  EXPECT_NEAR(starts, before, 1e-9);
+  EXPECT_NEAR(ends, after, 1e-9);
+}
+
 // With more sub-steps the rigid-row spring keeps the nominal sub-step's
 // stiffness (its stretch under a load does not depend on the sub-step:
 // C = K F / omega^2). A 10 kg ball hanging on a hinge about the vertical

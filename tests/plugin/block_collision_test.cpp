@@ -180,9 +180,10 @@ TEST(OdeBlockCollision, TheDeepestContactFoundInAStepIsReported) {
   EXPECT_EQ(dWorldGetBlockDeepestContact(nullptr), 0.0);
 }
 
-// dWorldSetBlockRecordStageEnergy: each sub-step's energy after its five
-// stages. A box falling free under semi-implicit Euler (section 3): after
-// sub-step k's forces it moves at g h (k + 1), and after its position
+// dWorldSetBlockRecordStageEnergy: each sub-step's energy at its start
+// and after its five stages. A box falling free under semi-implicit Euler
+// (section 3): it starts sub-step k at g h k, after its forces it moves
+// at g h (k + 1), and after its position
 // update it has fallen g h^2 (k + 1)(k + 2) / 2; no other stage changes
 // anything.
 TEST(OdeBlockCollision, EachSubstepsEnergyAfterEveryStageIsReported) {
@@ -195,27 +196,28 @@ TEST(OdeBlockCollision, EachSubstepsEnergyAfterEveryStageIsReported) {
   dWorldSetBlockRecordStageEnergy(scene.world, 1);
   ASSERT_EQ(dWorldBlockStep(scene.world, kStep), 1);
   const int n = dWorldGetBlockStageEnergy(scene.world, nullptr, nullptr, nullptr, nullptr, 0);
-  ASSERT_EQ(n, 20);
+  ASSERT_EQ(n, 24);
   std::vector<int> substep(n), stage(n);
   std::vector<dReal> kinetic(n), potential(n);
   ASSERT_EQ(dWorldGetBlockStageEnergy(scene.world, substep.data(), stage.data(), kinetic.data(),
                                       potential.data(), n),
             n);
   for (int i = 0; i < n; ++i) {
-    const int k = i / 5;
+    const int k = i / 6;
     EXPECT_EQ(substep[i], k);
-    EXPECT_EQ(stage[i], i % 5);
-    const double v = g * h * (k + 1);
+    EXPECT_EQ(stage[i], i % 6 == 0 ? dBlockStageStart : i % 6 - 1) << "the start first";
+    const double v = g * h * (stage[i] == dBlockStageStart ? k : k + 1);
     EXPECT_NEAR(kinetic[i], 0.5 * m * v * v, 1e-9) << i;
-    const int moves = stage[i] >= dBlockStagePositions ? k + 1 : k;
+    const bool moved = stage[i] == dBlockStagePositions || stage[i] == dBlockStageRelax;
+    const int moves = moved ? k + 1 : k;
     const double fallen = 0.5 * g * h * h * moves * (moves + 1);
     EXPECT_NEAR(potential[i], m * g * (z0 - fallen), 1e-9) << i;
   }
   // Room for fewer: the first ones only, and how many there were.
   int stages[3] = {-1, -1, -1};
   EXPECT_EQ(dWorldGetBlockStageEnergy(scene.world, nullptr, stages, nullptr, nullptr, 2), n);
-  EXPECT_EQ(stages[0], dBlockStageForces);
-  EXPECT_EQ(stages[1], dBlockStageWarmStart);
+  EXPECT_EQ(stages[0], dBlockStageStart);
+  EXPECT_EQ(stages[1], dBlockStageForces);
   EXPECT_EQ(stages[2], -1);
   dWorldSetBlockRecordStageEnergy(scene.world, 0);
   ASSERT_EQ(dWorldBlockStep(scene.world, kStep), 1);

@@ -236,24 +236,29 @@ ODE_API dReal dWorldGetBlockDeepestContact(dWorldID w);
  * tolerance is set or dWorldSetBlockRecordResiduals is on. */
 ODE_API int dWorldGetBlockResidualHistory(dWorldID w, dReal* maxima, dReal* rms, int capacity);
 /* Records, from the next step of w on (on = 1) or no more (0), the
- * kinetic and potential energy (J) of the bodies blockstep steps after
- * each stage of every sub-step: where a step gains or loses energy. The
+ * kinetic and potential energy (J) of the bodies blockstep steps at the
+ * start of every sub-step and after each of its stages: where a step
+ * gains or loses energy. The
  * step itself is the same. */
 ODE_API void dWorldSetBlockRecordStageEnergy(dWorldID w, int on);
-/* Stages, in the order a sub-step runs them. */
+/* Stages: each sub-step's samples begin with its start, then follow in
+ * the order the sub-step runs them. */
 enum {
   dBlockStageForces = 0,    /* gravity, forces and damping added */
   dBlockStageWarmStart = 1, /* the last sub-step's impulses applied again */
   dBlockStageSweeps = 2,    /* the velocity sweeps, with position correction */
   dBlockStagePositions = 3, /* the positions moved */
-  dBlockStageRelax = 4      /* the bias-free sweeps */
+  dBlockStageRelax = 4,     /* the bias-free sweeps */
+  dBlockStageStart = 5      /* the sub-step's start, before its forces */
 };
 /* Copies up to capacity samples of the last step of w, in the order they
  * were taken (any array may be NULL): the sub-step (0-based), the stage
  * (dBlockStage*), the kinetic energy and the potential energy in the
  * world's gravity. Islands that turn at different rates may be stepped
  * one after the other with their own sub-step counts, each summing its
- * own bodies. Returns how many samples there were (0 unless recording). */
+ * own bodies: a change reads from one sample to the next within a
+ * sub-step, from its start on. Returns how many samples there were (0
+ * unless recording). */
 ODE_API int dWorldGetBlockStageEnergy(dWorldID w, int* substep, int* stage, dReal* kinetic,
                                       dReal* potential, int capacity);
 /* Why the last step of w was refused or fell back to ODE ("" if neither). */
