@@ -426,8 +426,7 @@ void Solver::recordStageEnergy(const StepInput& in, const SolverSettings& s,
       [&](std::int32_t i) {
         const Body& b = in.bodies[i];
         if (!b.alive || !b.isDynamic()) return;
-        sample.kinetic += atStart ? kineticEnergy(b, b.linearVelocity, b.angularVelocity)
-                                  : kineticEnergy(b, bodies_[i].v, bodies_[i].w);
+        sample.kinetic += atStart ? kineticEnergy(b) : kineticEnergy(b, bodies_[i].v, bodies_[i].w);
         if (b.gravity) sample.potential -= b.mass * in.gravity.dot(b.position);
       },
       true);
