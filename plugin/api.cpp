@@ -215,6 +215,10 @@ void readEnvironment() {
       v && parseReal("BLOCKSTEP_SINKING_DEPTH", v, x)) {
     s.sinkingDepth = x;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_MAX_TRAVEL");
+      v && parseReal("BLOCKSTEP_MAX_TRAVEL", v, x)) {
+    s.maxSurfaceTravelPerSubstep = x;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_CHAIN_BLOCKS");
       v && parseInt("BLOCKSTEP_CHAIN_BLOCKS", v, 0, n, 1)) {
     s.chainBlocks = n != 0;
@@ -597,31 +601,6 @@ int dWorldGetBlockLoadRelativeContacts(dWorldID w) {
   return worldFlag(__func__, w, &ode::BridgeSettings::loadRelativeContacts,
                    &SolverSettings::loadRelativeContacts);
 }
-void dWorldSetBlockImpactDepth(dWorldID w, dReal metres) {
-  if (!(metres >= 0.0) || !std::isfinite(metres)) {
-    say("%s(%g): expected a depth >= 0 (m; 0: off); call ignored", __func__, double(metres));
-    return;
-  }
-  guarded(__func__, [&] { LockedWorld(w).settings().impactDepth = metres; });
-}
-dReal dWorldGetBlockImpactDepth(dWorldID w) {
-  return guarded(__func__, dReal(0), [&] {
-    return dReal(heldOrSolvers(w, &ode::BridgeSettings::impactDepth, &SolverSettings::impactDepth));
-  });
-}
-void dWorldSetBlockSinkingDepth(dWorldID w, dReal metres) {
-  if (!(metres >= 0.0) || !std::isfinite(metres)) {
-    say("%s(%g): expected a depth >= 0 (m; 0: off); call ignored", __func__, double(metres));
-    return;
-  }
-  guarded(__func__, [&] { LockedWorld(w).settings().sinkingDepth = metres; });
-}
-dReal dWorldGetBlockSinkingDepth(dWorldID w) {
-  return guarded(__func__, dReal(0), [&] {
-    return dReal(
-        heldOrSolvers(w, &ode::BridgeSettings::sinkingDepth, &SolverSettings::sinkingDepth));
-  });
-}
 void dWorldSetBlockRetakeTurns(dWorldID w, int on) {
   setWorldFlag(__func__, w, on, &ode::BridgeSettings::retakeTurningParts);
 }
@@ -635,33 +614,60 @@ void dWorldSetBlockChainBlocks(dWorldID w, int on) {
 int dWorldGetBlockChainBlocks(dWorldID w) {
   return worldFlag(__func__, w, &ode::BridgeSettings::chainBlocks, &SolverSettings::chainBlocks);
 }
-// A world's angle setting (rad, >= 0; 0: off) held apart from its solver:
-// a bad value is said and ignored; unset, the solver's own is reported.
-using AngleSetting = std::optional<double> ode::BridgeSettings::*;
-void setWorldAngle(const char* call, dWorldID w, dReal radians, AngleSetting setting) {
-  if (!(radians >= 0.0) || !std::isfinite(radians)) {
-    say("%s(%g): expected an angle >= 0 (rad; 0: off); call ignored", call, double(radians));
+// A world's setting of a quantity >= 0 (0: off) held apart from its
+// solver: a bad value is said ("expected <what>") and ignored; unset, the
+// solver's own is reported.
+using QuantitySetting = std::optional<double> ode::BridgeSettings::*;
+void setWorldQuantity(const char* call, dWorldID w, dReal value, QuantitySetting setting,
+                      const char* what) {
+  if (!(value >= 0.0) || !std::isfinite(value)) {
+    say("%s(%g): expected %s; call ignored", call, double(value), what);
     return;
   }
-  guarded(call, [&] { LockedWorld(w).settings().*setting = radians; });
+  guarded(call, [&] { LockedWorld(w).settings().*setting = value; });
 }
-dReal worldAngle(const char* call, dWorldID w, AngleSetting setting,
-                 double SolverSettings::*solverOwn) {
+dReal worldQuantity(const char* call, dWorldID w, QuantitySetting setting,
+                    double SolverSettings::*solverOwn) {
   return guarded(call, dReal(0), [&] { return dReal(heldOrSolvers(w, setting, solverOwn)); });
 }
+constexpr const char* kAngle = "an angle >= 0 (rad; 0: off)";
+constexpr const char* kDepth = "a depth >= 0 (m; 0: off)";
+constexpr const char* kDistance = "a distance >= 0 (m; 0: off)";
+void dWorldSetBlockImpactDepth(dWorldID w, dReal metres) {
+  setWorldQuantity(__func__, w, metres, &ode::BridgeSettings::impactDepth, kDepth);
+}
+dReal dWorldGetBlockImpactDepth(dWorldID w) {
+  return worldQuantity(__func__, w, &ode::BridgeSettings::impactDepth,
+                       &SolverSettings::impactDepth);
+}
+void dWorldSetBlockSinkingDepth(dWorldID w, dReal metres) {
+  setWorldQuantity(__func__, w, metres, &ode::BridgeSettings::sinkingDepth, kDepth);
+}
+dReal dWorldGetBlockSinkingDepth(dWorldID w) {
+  return worldQuantity(__func__, w, &ode::BridgeSettings::sinkingDepth,
+                       &SolverSettings::sinkingDepth);
+}
+void dWorldSetBlockMaxTravel(dWorldID w, dReal metres) {
+  setWorldQuantity(__func__, w, metres, &ode::BridgeSettings::maxSurfaceTravelPerSubstep,
+                   kDistance);
+}
+dReal dWorldGetBlockMaxTravel(dWorldID w) {
+  return worldQuantity(__func__, w, &ode::BridgeSettings::maxSurfaceTravelPerSubstep,
+                       &SolverSettings::maxSurfaceTravelPerSubstep);
+}
 void dWorldSetBlockMaxTurn(dWorldID w, dReal radians) {
-  setWorldAngle(__func__, w, radians, &ode::BridgeSettings::maxTurnPerSubstep);
+  setWorldQuantity(__func__, w, radians, &ode::BridgeSettings::maxTurnPerSubstep, kAngle);
 }
 dReal dWorldGetBlockMaxTurn(dWorldID w) {
-  return worldAngle(__func__, w, &ode::BridgeSettings::maxTurnPerSubstep,
-                    &SolverSettings::maxTurnPerSubstep);
+  return worldQuantity(__func__, w, &ode::BridgeSettings::maxTurnPerSubstep,
+                       &SolverSettings::maxTurnPerSubstep);
 }
 void dWorldSetBlockRefreshTurn(dWorldID w, dReal radians) {
-  setWorldAngle(__func__, w, radians, &ode::BridgeSettings::maxTurnPerRefresh);
+  setWorldQuantity(__func__, w, radians, &ode::BridgeSettings::maxTurnPerRefresh, kAngle);
 }
 dReal dWorldGetBlockRefreshTurn(dWorldID w) {
-  return worldAngle(__func__, w, &ode::BridgeSettings::maxTurnPerRefresh,
-                    &SolverSettings::maxTurnPerRefresh);
+  return worldQuantity(__func__, w, &ode::BridgeSettings::maxTurnPerRefresh,
+                       &SolverSettings::maxTurnPerRefresh);
 }
 void dWorldSetBlockRelaxDrift(dWorldID w, int on) {
   if (on != 0 && on != 1) {

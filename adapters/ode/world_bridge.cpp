@@ -103,6 +103,8 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   if (settings_.sinkingDepth) s.sinkingDepth = *settings_.sinkingDepth;
   if (settings_.retakeTurningParts) s.retakeTurningParts = *settings_.retakeTurningParts;
   if (settings_.maxTurnPerSubstep) s.maxTurnPerSubstep = *settings_.maxTurnPerSubstep;
+  if (settings_.maxSurfaceTravelPerSubstep)
+    s.maxSurfaceTravelPerSubstep = *settings_.maxSurfaceTravelPerSubstep;
   if (settings_.maxTurnPerRefresh) s.maxTurnPerRefresh = *settings_.maxTurnPerRefresh;
   if (settings_.relaxCancelsDrift) s.relaxCancelsDrift = *settings_.relaxCancelsDrift;
   if (settings_.threads) s.threads = *settings_.threads;

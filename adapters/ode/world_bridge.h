@@ -83,6 +83,10 @@ struct BridgeSettings {
   // The turn per sub-step above which a step runs more sub-steps
   // (SolverSettings::maxTurnPerSubstep; unset: the solver's own).
   std::optional<double> maxTurnPerSubstep;
+  // Colliding every sub-step, the farthest a touching body's turn may move
+  // its surface within a part (SolverSettings::maxSurfaceTravelPerSubstep,
+  // m; unset: the solver's own).
+  std::optional<double> maxSurfaceTravelPerSubstep;
   // The turn before sub-steps prepare their rows again
   // (SolverSettings::maxTurnPerRefresh; unset: the solver's own).
   std::optional<double> maxTurnPerRefresh;

@@ -85,6 +85,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.loadContacts) dWorldSetBlockLoadRelativeContacts(w, *o.loadContacts ? 1 : 0);
   if (o.impactDepth) dWorldSetBlockImpactDepth(w, *o.impactDepth);
   if (o.sinkingDepth) dWorldSetBlockSinkingDepth(w, *o.sinkingDepth);
+  if (o.maxTravel) dWorldSetBlockMaxTravel(w, *o.maxTravel);
   if (o.retakeTurns) dWorldSetBlockRetakeTurns(w, *o.retakeTurns ? 1 : 0);
   if (o.contactRows) dWorldSetBlockContactIslandRows(w, *o.contactRows);
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
@@ -319,6 +320,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.contactRows = whole(text, key, value, 0, 4096);
   } else if (key == "max_turn") {
     o.maxTurn = decimal(text, key, value, 0.0, 10.0);
+  } else if (key == "max_travel") {
+    o.maxTravel = decimal(text, key, value, 0.0, 1.0);
   } else if (key == "refresh_turn") {
     o.refreshTurn = decimal(text, key, value, 0.0, 10.0);
   } else if (key == "threads") {
@@ -373,6 +376,9 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
            "taken again shorter, or that sends a body past its reach taken again reaching "
            "farther, 0 or 1"},
           {"max_turn", "blockstep: more sub-steps past this turn per sub-step, rad, 0: off"},
+          {"max_travel",
+           "blockstep: colliding every sub-step, more parts past this surface travel of a "
+           "touching body's turn per part, m, 0: the turn only"},
           {"refresh_turn",
            "blockstep: sub-steps keep their rows until bodies turn this far, rad, 0: always "
            "prepare"},

@@ -22,19 +22,55 @@ double leastReach(const CollisionSettings& settings) {
   return std::max(0.0, std::min(settings.margin, 0.5 * settings.restingMargin));
 }
 
-// The shape's farthest point from its body's centre.
-double farthestOf(const Shape& s, const ShapePose& pose) {
-  const PosedConvex convex(s, pose);
-  return s.localPosition.norm() + convex.coreRadius() + convex.radius;
-}
-
 // How fast a point of the shape can move: its body's speed plus its turn
 // rate times the shape's farthest point.
 double surfaceSpeed(const Body& b, double farthest) {
   return b.linearVelocity.norm() + b.angularVelocity.norm() * farthest;
 }
 
+// How far the shape's surface reaches from its body's centre of mass
+// (m), whatever the pose. Infinite for a plane.
+double farthestPointOf(const Shape& s) {
+  const PosedConvex convex(s, ShapePose{Vec3::Zero(), Mat3::Identity()});
+  return s.localPosition.norm() + convex.coreRadius() + convex.radius;
+}
+
 }  // namespace
+
+double turningGeometrySpeed(const Shape& s, const Quat& bodyOrientation, const Vec3& w) {
+  const Vec3 wb = bodyOrientation.conjugate() * w;  // in the body's frame, as the shape is placed
+  const Vec3& centre = s.localPosition;
+  const Mat3 axes = s.localOrientation.toRotationMatrix();
+  auto endsSpeed = [&](double halfLength) {
+    const Vec3 along = axes.col(2) * halfLength;
+    return std::max(wb.cross(centre + along).norm(), wb.cross(centre - along).norm());
+  };
+  switch (s.kind) {
+    case Shape::Kind::Sphere:
+      return wb.cross(centre).norm();
+    case Shape::Kind::Capsule:
+      return endsSpeed(s.halfLength);
+    case Shape::Kind::Cylinder: {
+      const Vec3 axis = axes.col(2);
+      return endsSpeed(s.halfLength) + (wb - wb.dot(axis) * axis).norm() * s.radius;
+    }
+    case Shape::Kind::Box: {
+      double fastest = 0.0;
+      for (int c = 0; c < 8; ++c) {
+        const Vec3 corner(c & 1 ? s.halfExtents.x() : -s.halfExtents.x(),
+                          c & 2 ? s.halfExtents.y() : -s.halfExtents.y(),
+                          c & 4 ? s.halfExtents.z() : -s.halfExtents.z());
+        fastest = std::max(fastest, wb.cross(centre + axes * corner).norm());
+      }
+      return fastest;
+    }
+    case Shape::Kind::Convex:
+      return wb.norm() * farthestPointOf(s);
+    case Shape::Kind::Plane:
+      return 0.0;
+  }
+  return 0.0;
+}
 
 double surfaceRoundness(Shape::Kind kind, double radius, const Vec3& axis, const Vec3& normal) {
   // A cylinder touches along its side when the normal is within this
@@ -108,7 +144,7 @@ void Collider::collide(const std::vector<Shape>& shapes, const std::vector<Body>
     const Shape& s = shapes[i];
     if (s.alive) {
       poses_[i] = poseOf(s, bodies);
-      farthest_[i] = farthestOf(s, poses_[i]);
+      farthest_[i] = farthestPointOf(s);
       reach_[i] = least;  // planes and static world shapes do not move
       if (s.body != kWorldBody) {
         double speed = surfaceSpeed(bodies[s.body], farthest_[i]);

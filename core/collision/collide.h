@@ -61,6 +61,14 @@ struct CollisionSettings {
 int collideShapes(const Shape& s1, const ShapePose& p1, const Shape& s2, const ShapePose& p2,
                   double margin, bool boxBoxBySat, ContactManifold& m, bool& swapped);
 
+// How fast the shape's geometry moves (m/s) while its body turns at `w`
+// (world) about its centre of mass: the fastest of a box's corners, a
+// capsule's segment ends, a cylinder's rims, a ball's centre; a hull's
+// farthest point from the centre of mass (a bound). A round surface
+// spinning about itself moves nothing it touches, so it counts for
+// nothing here. 0 for a plane.
+double turningGeometrySpeed(const Shape& s, const Quat& bodyOrientation, const Vec3& w);
+
 // How round a shape's surface is where it touches along `normal`
 // (ContactPoint::radiusA): a sphere's and a capsule's radius everywhere, a
 // cylinder's (its axis given) along its side but not on its flat ends or

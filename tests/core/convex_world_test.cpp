@@ -464,6 +464,47 @@ TEST(ConvexWorld, CollidingEverySubstepTakesShorterPartsWhileATouchingBodyTumble
   EXPECT_LT(ball.deepest, 0.001);
 }
 
+// A part also holds how far a touching body's turn moves its shape's
+// features (maxSurfaceTravelPerSubstep; World::surfaceTurnRate): 0.1 rad
+// is 10 mm at the end of a 0.2 m cylinder. A 1 m plank spinning on
+// frictionless ground at 9 rad/s about the vertical (0.015 rad a 1/600 s
+// sub-step, well within the turn) moves its corners 0.5004 m x 9 / 600 =
+// 7.5 mm a sub-step, which takes two parts of 5 mm; stood on its end, the
+// same spin moves its corners 0.028 m x 9 / 600 = 0.42 mm, which takes
+// one. Returns the most parts a step took after the first (which has no
+// contacts to go by).
+int partsSpinningOnIce(bool standing, double maxTravel) {
+  World world;
+  SolverSettings settings = SolverSettings::subStepped(10);
+  settings.maxSurfaceTravelPerSubstep = maxTravel;
+  world.setSettings(settings);
+  world.collisionSettings().everySubstep = true;
+  Shape ground = Shape::plane(Vec3::UnitZ(), 0.0);
+  ground.friction = 0.0;
+  world.addShape(ground);
+  const Vec3 half = standing ? Vec3(0.02, 0.02, 0.5) : Vec3(0.5, 0.02, 0.02);
+  BodyDesc d = test::boxBody(Vec3(0, 0, half.z()), 1.0, 2.0 * half);
+  d.angularVelocity = Vec3(0.0, 0.0, 9.0);
+  const BodyId b = world.createBody(d);
+  Shape plank = Shape::box(b, half);
+  plank.friction = 0.0;
+  world.addShape(plank);
+  int mostParts = 0;
+  for (int frame = 0; frame < 10; ++frame) {
+    world.step(1.0 / 60.0);
+    if (frame > 0) mostParts = std::max(mostParts, world.lastStepStats().substeps);
+  }
+  EXPECT_NEAR(world.body(b).angularVelocity.z(), 9.0, 1e-6) << "on ice nothing slows the spin";
+  EXPECT_LT(std::abs(world.body(b).position.z() - half.z()), 1e-3) << "it rests on the ground";
+  return mostParts;
+}
+
+TEST(ConvexWorld, CollidingEverySubstepHoldsATurningShapesTravelPerPart) {
+  EXPECT_EQ(partsSpinningOnIce(false, SolverSettings::kMaxSurfaceTravelPerSubstep), 20);
+  EXPECT_EQ(partsSpinningOnIce(false, 0.0), 10);  // the turn only
+  EXPECT_EQ(partsSpinningOnIce(true, SolverSettings::kMaxSurfaceTravelPerSubstep), 10);
+}
+
 // The deepest point of the contacts the world's last collision found (m).
 double deepestContact(const World& world) {
   double deepest = 0.0;

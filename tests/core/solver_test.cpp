@@ -282,6 +282,11 @@ TEST(Validation, BadInputIsRefusedAndTheWorldKept) {
   SolverSettings s;
   s.iterations = 0;
   EXPECT_THROW(world.setSettings(s), Error);
+  s = SolverSettings::subStepped(4);
+  s.maxSurfaceTravelPerSubstep = -0.001;
+  EXPECT_THROW(world.setSettings(s), Error);
+  s.maxSurfaceTravelPerSubstep = INFINITY;
+  EXPECT_THROW(world.setSettings(s), Error);
   EXPECT_THROW(world.body(7), Error);
 
   // After all that the world is as it was and steps normally.
@@ -1157,7 +1162,7 @@ TEST(Solver, EachClassOfIslandsRecordsItsSubstepsEnergyFromTheirStart) {
     }
     return e;
   };
-  world.step(1.0 / 60.0);  // the turn rates seen
+  world.step(1.0 / 60.0);                       // the turn rates seen
   world.setLinearVelocity(bob, Vec3(0, 1, 0));  // across the rod, set between steps
   const double before = energy();
   world.step(1.0 / 60.0);

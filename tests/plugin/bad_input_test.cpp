@@ -162,6 +162,9 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   const dReal sinkingDepth = dWorldGetBlockSinkingDepth(p.s.world);
   dWorldSetBlockSinkingDepth(p.s.world, -0.001);
   dWorldSetBlockSinkingDepth(p.s.world, std::nan(""));
+  const dReal maxTravel = dWorldGetBlockMaxTravel(p.s.world);
+  dWorldSetBlockMaxTravel(p.s.world, -0.002);
+  dWorldSetBlockMaxTravel(p.s.world, INFINITY);
   const int contactRows = dWorldGetBlockContactIslandRows(p.s.world);
   dWorldSetBlockContactIslandRows(p.s.world, -3);
   dWorldSetBlockContactIslandRows(p.s.world, 100000);
@@ -190,6 +193,13 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
       << err;
   EXPECT_EQ(sinkingDepth, 0.00025);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockSinkingDepth(p.s.world), sinkingDepth);
+  EXPECT_NE(err.find("dWorldSetBlockMaxTravel(-0.002): expected a distance >= 0"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find("dWorldSetBlockMaxTravel(inf): expected a distance >= 0"), std::string::npos)
+      << err;
+  EXPECT_EQ(maxTravel, 0.005);  // the sub-stepped preset's
+  EXPECT_EQ(dWorldGetBlockMaxTravel(p.s.world), maxTravel);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 1);  // the sub-stepped preset's
   dWorldSetBlockRetakeTurns(p.s.world, 0);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 0);
