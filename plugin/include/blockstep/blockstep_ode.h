@@ -114,11 +114,13 @@ ODE_API dReal dWorldGetBlockImpactDepth(dWorldID w);
 ODE_API void dWorldSetBlockSinkingDepth(dWorldID w, dReal metres);
 ODE_API dReal dWorldGetBlockSinkingDepth(dWorldID w);
 /* With blockstep's own collision every sub-step, parts are short enough
- * that a touching body's turn moves its farthest surface point no more
- * than this (m) within one, as well as no more than the turn per sub-step
- * (dWorldSetBlockMaxTurn): a large shape's rim travels farther in the same
- * angle than a small one's. 0: the turn only; the default is the solver's
- * own (5 mm sub-stepped, 0 for dWorldStep and the paper preset).
+ * that a touching body's turn moves its shape's features (a box's corners,
+ * a capsule's segment ends, a cylinder's rims) no farther than this (m)
+ * within one, as well as no more than the turn per sub-step
+ * (dWorldSetBlockMaxTurn, which must be on): a large shape's rim travels
+ * farther in the same angle than a small one's. 0: the turn only; the
+ * default is the solver's own (5 mm sub-stepped, 0 for dWorldStep and the
+ * paper preset).
  * BLOCKSTEP_MAX_TRAVEL. */
 ODE_API void dWorldSetBlockMaxTravel(dWorldID w, dReal metres);
 ODE_API dReal dWorldGetBlockMaxTravel(dWorldID w);
