@@ -37,16 +37,15 @@ struct Overrides {
   std::optional<double> erp, cfm;  // the world's ERP and CFM (every stepper)
   std::optional<double> dt;        // the frame step, s
   // blockstep only.
-  std::optional<int> sweeps;          // velocity sweeps per sub-step
-  std::optional<int> relax;           // relax sweeps per sub-step
-  std::optional<bool> warm;           // warm starting
-  std::optional<bool> rowByRow;       // mode=row: one row at a time, not one block per joint
-  std::optional<int> islandRows;      // island blocks up to this many joint rows (0: off)
-  std::optional<bool> lightGroups;    // light bodies' contacts as exact groups in larger islands
-  std::optional<bool> loadContacts;   // fresh contacts on jointed bodies relative to their load
-  std::optional<double> impactDepth;  // fast-closing contacts' neighbourhoods as exact groups, m
-  std::optional<double>
-      maxTravel;  // colliding every sub-step: a touching body's surface travel per part, m
+  std::optional<int> sweeps;           // velocity sweeps per sub-step
+  std::optional<int> relax;            // relax sweeps per sub-step
+  std::optional<bool> warm;            // warm starting
+  std::optional<bool> rowByRow;        // mode=row: one row at a time, not one block per joint
+  std::optional<int> islandRows;       // island blocks up to this many joint rows (0: off)
+  std::optional<bool> lightGroups;     // light bodies' contacts as exact groups in larger islands
+  std::optional<bool> loadContacts;    // fresh contacts on jointed bodies relative to their load
+  std::optional<double> impactDepth;   // fast-closing contacts' neighbourhoods as exact groups, m
+  std::optional<double> maxTravel;     // a touching body's surface travel per part, m
   std::optional<double> sinkingDepth;  // contacts still sinking after the sweeps: exact groups, m
   std::optional<bool> retakeTurns;     // parts that spin a touching body up taken again, shorter
   std::optional<bool> chains;          // larger islands cut into chains of that many rows

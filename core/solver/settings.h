@@ -108,10 +108,9 @@ struct SolverSettings {
   // capsule's segment ends, a cylinder's rims: turningGeometrySpeed) no
   // farther than this (m) within one: a contact is linearized where the
   // part starts, and what the turn brings in is met only at the next
-  // collision. An
-  // angle alone lets a large shape's rim travel far (0.1 rad is 10 mm at
-  // the end of a 0.2 m cylinder) while holding back small ones whose
-  // surface barely moves (a 2 cm hair segment: 1.4 mm). At 5 mm no
+  // collision. An angle alone lets a large shape's rim travel far (0.1
+  // rad is 10 mm at the end of a 0.2 m cylinder) while holding back small
+  // ones whose surface barely moves (a 2 cm hair segment: 1.4 mm). At 5 mm no
   // contact of the 1,000-shape pile passed 5 mm at 20 frame steps' frame
   // collisions (two did with the turn only), the 100 hulls went 1.0 mm
   // deep rather than 2.5, at the same solve time. 0: the turn only. It
