@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 #include <string>
 #include <variant>
 
@@ -686,9 +685,10 @@ double World::surfaceTurnRate(const std::vector<ContactManifold>& contacts) {
     if (m.bodyA != kWorldBody) touching_[m.bodyA] = 1;
     if (m.bodyB != kWorldBody) touching_[m.bodyB] = 1;
   }
+  // A feature moving at speed s travels as far in a part as a turn of
+  // s / travel * maxTurnPerSubstep would turn (0: the turn only).
   const double travel = settings_.maxSurfaceTravelPerSubstep;
-  const double levelReach =
-      travel > 0.0 ? travel / settings_.maxTurnPerSubstep : std::numeric_limits<double>::infinity();
+  const double turnPerSpeed = travel > 0.0 ? settings_.maxTurnPerSubstep / travel : 0.0;
   double fastest = 0.0;
   for (const Shape& shape : shapes_) {
     if (!shape.alive || shape.body == kWorldBody || !touching_[shape.body]) continue;
@@ -702,8 +702,9 @@ double World::surfaceTurnRate(const std::vector<ContactManifold>& contacts) {
       w -= w.dot(axis) * axis;
     }
     fastest = std::max(fastest, w.norm());
-    fastest = std::max(fastest,
-                       turningGeometrySpeed(shape, b.orientation, b.angularVelocity) / levelReach);
+    if (turnPerSpeed > 0.0)
+      fastest = std::max(
+          fastest, turnPerSpeed * turningGeometrySpeed(shape, b.orientation, b.angularVelocity));
   }
   return fastest;
 }
