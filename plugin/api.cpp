@@ -238,6 +238,10 @@ void readEnvironment() {
     else
       say("ignoring BLOCKSTEP_RELAX_DRIFT=%s: expected 0 or 1", v);
   }
+  if (const char* v = std::getenv("BLOCKSTEP_PROJECTIONS");
+      v && parseInt("BLOCKSTEP_PROJECTIONS", v, 0, n, SolverSettings::kMaxProjections)) {
+    s.positionProjections = n;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_THREADS");
       v && parseInt("BLOCKSTEP_THREADS", v, 0, n)) {
     if (n <= SolverSettings::kMaxThreads)
@@ -691,6 +695,16 @@ int dWorldGetBlockThreads(dWorldID w) {
   });
 }
 
+void dWorldSetBlockProjections(dWorldID w, int projections) {
+  if (!inRange(__func__, projections, 0, SolverSettings::kMaxProjections)) return;
+  guarded(__func__, [&] { LockedWorld(w).settings().positionProjections = projections; });
+}
+int dWorldGetBlockProjections(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    return heldOrSolvers(w, &ode::BridgeSettings::positionProjections,
+                         &SolverSettings::positionProjections);
+  });
+}
 int dWorldGetBlockRelaxDrift(dWorldID w) {
   return guarded(__func__, 0, [&] {
     return int(heldOrSolvers(w, &ode::BridgeSettings::relaxCancelsDrift,

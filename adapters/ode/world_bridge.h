@@ -93,6 +93,9 @@ struct BridgeSettings {
   // Relax closes the joints' linearization drift
   // (SolverSettings::relaxCancelsDrift; unset: the solver's own).
   std::optional<bool> relaxCancelsDrift;
+  // Position projections after each sub-step's position update
+  // (SolverSettings::positionProjections; unset: the solver's own).
+  std::optional<int> positionProjections;
   // Threads sweeping independent islands (SolverSettings::threads; unset:
   // the solver's own, 1).
   std::optional<int> threads;

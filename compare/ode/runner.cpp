@@ -91,6 +91,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.maxTurn) dWorldSetBlockMaxTurn(w, *o.maxTurn);
   if (o.refreshTurn) dWorldSetBlockRefreshTurn(w, *o.refreshTurn);
   if (o.relaxDrift) dWorldSetBlockRelaxDrift(w, *o.relaxDrift ? 1 : 0);
+  if (o.projections) dWorldSetBlockProjections(w, *o.projections);
   if (o.threads) dWorldSetBlockThreads(w, *o.threads);
   if (o.persistence) dWorldSetBlockContactPersistence(w, *o.persistence);
   if (o.tolerance) dWorldSetBlockTolerance(w, *o.tolerance);
@@ -328,6 +329,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.threads = whole(text, key, value, 0, 256);
   } else if (key == "relax_drift") {
     o.relaxDrift = flag(text, key, value);
+  } else if (key == "project") {
+    o.projections = whole(text, key, value, 0, 16);
   } else if (key == "persistence") {
     o.persistence = decimal(text, key, value, 0.0, 1.0);
   } else if (key == "tolerance") {
@@ -383,6 +386,9 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
            "blockstep: sub-steps keep their rows until bodies turn this far, rad, 0: always "
            "prepare"},
           {"relax_drift", "blockstep: relax closes the joints' linearization drift, 0 or 1"},
+          {"project",
+           "blockstep: position projections of island blocks' rigid joint rows at each step's "
+           "end, 0: off"},
           {"threads", "blockstep: threads sweeping independent islands, 0: one per core"},
           {"persistence", "blockstep: contact persistence, m, 0: off"},
           {"tolerance", "blockstep: stop sweeping below this residual, m/s, 0: off"},

@@ -53,6 +53,7 @@ struct Overrides {
   std::optional<double> maxTurn;       // rad per sub-step before more sub-steps (0: off)
   std::optional<double> refreshTurn;   // rad before sub-steps prepare rows again (0: always)
   std::optional<bool> relaxDrift;      // relax closes the joints' linearization drift
+  std::optional<int> projections;      // position projections at each step's end (0: off)
   std::optional<int> threads;          // threads sweeping independent islands (0: per core)
   std::optional<double> persistence;   // contact persistence, m (0: off)
   std::optional<double> tolerance;     // stop sweeping below this residual, m/s (0: off)

@@ -51,9 +51,12 @@ struct ConstraintRow {
   std::int8_t frictionOf = kNoFriction;
   bool conePair = false;  // this row and the next share one friction disk
   RowBias biasKind = RowBias::Baumgarte;
-  bool angular = false;   // torque-like row (for feedback and breaking)
-  bool spring = false;    // a physical spring (Softness::Stiffness): relax leaves it alone
-  bool bounced = false;   // restitution set its target: its impulse answered an impact
+  bool angular = false;  // torque-like row (for feedback and breaking)
+  bool spring = false;   // a physical spring (Softness::Stiffness): relax leaves it alone
+  bool bounced = false;  // restitution set its target: its impulse answered an impact
+  // A rigid row of an island block (Solver::prepare): position projection
+  // closes its error at the new pose (SolverSettings::positionProjections).
+  bool projected = false;
   std::uint8_t slot = 0;  // the joint's stable name for this row: warm starting follows it
 
   static constexpr std::int8_t kNoFriction = -1;

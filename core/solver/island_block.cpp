@@ -394,10 +394,6 @@ IslandBlocks::Group& IslandBlocks::addGroup(const std::vector<ConstraintBlock>& 
 void IslandBlocks::factor(Group& g, const std::vector<ConstraintBlock>& blocks,
                           std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies) {
   const std::int32_t n = g.size;
-  double* F = &factor_[g.factor];
-  const std::int32_t* first = &first_[g.firstEntry];
-  const std::size_t* base = &rowBase_[g.firstEntry];
-  const std::int32_t* rowOf = &entryRow_[g.firstEntry];
   const std::int32_t* blockOf = &entryBlock_[g.firstEntry];
   // Joints whose rows share one spring relative to their block's mass
   // (Solver::blockSpringShare: every rigid row under the sub-stepped
@@ -410,8 +406,20 @@ void IslandBlocks::factor(Group& g, const std::vector<ConstraintBlock>& blocks,
   g.springShare = n > 0 ? blocks[blockOf[0]].springShare : 0.0;
   for (std::int32_t i = 1; i < n; ++i)
     if (blocks[blockOf[i]].springShare != g.springShare) g.springShare = -1.0;
-  const bool mixed = g.springShare < 0.0;
-  if (mixed) g.springShare = 0.0;
+  g.mixedSprings = g.springShare < 0.0;
+  if (g.mixedSprings) g.springShare = 0.0;
+  factorInto(g, blocks, rows, bodies, &factor_[g.factor]);
+}
+
+void IslandBlocks::factorInto(const Group& g, const std::vector<ConstraintBlock>& blocks,
+                              std::vector<ConstraintRow>& rows,
+                              const std::vector<SolverBody>& bodies, double* F) {
+  const std::int32_t n = g.size;
+  const std::int32_t* first = &first_[g.firstEntry];
+  const std::size_t* base = &rowBase_[g.firstEntry];
+  const std::int32_t* rowOf = &entryRow_[g.firstEntry];
+  const std::int32_t* blockOf = &entryBlock_[g.firstEntry];
+  const bool mixed = g.mixedSprings;
   const double scaleK = 1.0 + g.springShare;
   double scale = 0.0;
   for (std::int32_t i = 0; i < n; ++i) {
@@ -453,8 +461,8 @@ void IslandBlocks::factor(Group& g, const std::vector<ConstraintBlock>& blocks,
     F[base[i] + i] = invD[i];
 }
 
-void IslandBlocks::forwardSubstitute(const Group& g, double* x) const {
-  const double* F = &factor_[g.factor];
+void IslandBlocks::forwardSubstitute(const Group& g, double* x, const double* F) const {
+  if (!F) F = &factor_[g.factor];
   const std::int32_t* first = &first_[g.firstEntry];
   const std::size_t* base = &rowBase_[g.firstEntry];
   for (std::int32_t i = 0; i < g.size; ++i) {
@@ -476,13 +484,13 @@ double IslandBlocks::inverseQuadraticInPlace(const Group& g, double* x) const {
   return sum;
 }
 
-void IslandBlocks::solveInPlace(const Group& g, double* x) const {
+void IslandBlocks::solveInPlace(const Group& g, double* x, const double* F) const {
   const std::int32_t n = g.size;
-  const double* F = &factor_[g.factor];
+  if (!F) F = &factor_[g.factor];
   const std::int32_t* first = &first_[g.firstEntry];
   const std::size_t* base = &rowBase_[g.firstEntry];
   // L y = r, y *= 1/D, L^T x = y; each within the profile.
-  forwardSubstitute(g, x);
+  forwardSubstitute(g, x, F);
   for (std::int32_t i = 0; i < n; ++i)
     x[i] *= F[base[i] + i];
   for (std::int32_t k = n - 1; k > 0; --k) {
@@ -609,6 +617,28 @@ void IslandBlocks::solve(int group, bool useBias, const std::vector<ConstraintBl
     row.impulse += x[i];
     applyImpulse(row, x[i], bodies[blk.bodyA], bodies[blk.bodyB]);
   }
+}
+
+void IslandBlocks::factorAtPose(int group, const std::vector<ConstraintBlock>& blocks,
+                                std::vector<ConstraintRow>& poseRows,
+                                const std::vector<SolverBody>& bodies) {
+  // Grows only while warming up.
+  if (poseFactor_.size() < factor_.size()) poseFactor_.resize(factor_.size());
+  const Group& g = groups_[group];
+  factorInto(g, blocks, poseRows, bodies, &poseFactor_[g.factor]);
+}
+
+void IslandBlocks::solvePositionErrors(int group, const std::vector<double>& error,
+                                       std::vector<double>& lambda) const {
+  const Group& g = groups_[group];
+  const std::int32_t* rowOf = &entryRow_[g.firstEntry];
+  double* x = &solveScratch_[g.firstEntry];
+  for (std::int32_t i = 0; i < g.size; ++i)
+    x[i] = -error[rowOf[i]];
+  solveInPlace(g, x, &poseFactor_[g.factor]);
+  const double scale = 1.0 + g.springShare;
+  for (std::int32_t i = 0; i < g.size; ++i)
+    lambda[rowOf[i]] = scale * x[i];
 }
 
 }  // namespace blockstep

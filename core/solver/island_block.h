@@ -120,6 +120,26 @@ class IslandBlocks {
   void solve(int group, bool useBias, const std::vector<ConstraintBlock>& blocks,
              std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies);
 
+  // Post-stabilization (SolverSettings::positionProjections): K of a
+  // group's rows as written at the bodies' new pose (poseRows, indexed
+  // like the solver's rows: Jacobians and M^-1 J^T) factored beside the
+  // sub-step's own factor, which the relax sweeps and carried sub-steps
+  // still use; then the position impulses lambda = -K^-1 e that take the
+  // rows' errors e out to first order (e and lambda indexed like the
+  // solver's rows). The factor is of (1 + c) K where the rows share a
+  // mass-relative spring: lambda is of K itself.
+  void factorAtPose(int group, const std::vector<ConstraintBlock>& blocks,
+                    std::vector<ConstraintRow>& poseRows, const std::vector<SolverBody>& bodies);
+  void solvePositionErrors(int group, const std::vector<double>& error,
+                           std::vector<double>& lambda) const;
+  // f(solver row, its block) for each of a group's rows.
+  template <class F>
+  void forEachRow(int group, F f) const {
+    const Group& g = groups_[group];
+    for (std::int32_t k = 0; k < g.size; ++k)
+      f(entryRow_[g.firstEntry + k], entryBlock_[g.firstEntry + k]);
+  }
+
   // 1/2 d^T K^-1 d over island i's equality rows (the island must be
   // covered), d_r = speed(row r, its block's index) (the runaway guard's
   // measure of the energy the rows' errors hold: the sum of the diagonals
@@ -153,6 +173,7 @@ class IslandBlocks {
     // c of its joints' common mass-relative spring (Solver::blockSpringShare):
     // the factor is of (1 + c) K; 0: each row's own gamma.
     double springShare = 0.0;
+    bool mixedSprings = false;  // its joints' springs differ: each row keeps its own gamma
   };
   // A joint's bounded row in a covered island.
   struct BoundedRow {
@@ -192,10 +213,15 @@ class IslandBlocks {
   Group& addGroup(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody);
   void factor(Group& g, const std::vector<ConstraintBlock>& blocks,
               std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
-  // x = L^-1 x with the group's factor (K = L D L^T).
-  void forwardSubstitute(const Group& g, double* x) const;
-  // x = K^-1 x with the group's factor.
-  void solveInPlace(const Group& g, double* x) const;
+  // The LDL^T of the group's K from `rows`, into F (the group's profile).
+  void factorInto(const Group& g, const std::vector<ConstraintBlock>& blocks,
+                  std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies,
+                  double* F);
+  // x = L^-1 x with the group's factor (K = L D L^T; F: another factor
+  // in its profile, such as poseFactor_'s).
+  void forwardSubstitute(const Group& g, double* x, const double* F = nullptr) const;
+  // x = K^-1 x with the group's factor (or F).
+  void solveInPlace(const Group& g, double* x, const double* F = nullptr) const;
   // x^T K^-1 x, as y^T D^-1 y with y = L^-1 x (K = L D L^T): half a solve.
   // Overwrites x with y.
   double inverseQuadraticInPlace(const Group& g, double* x) const;
@@ -214,10 +240,11 @@ class IslandBlocks {
   // Its profile's entries (columns first_ .. itself) are at rowBase_ +
   // column in the group's part of factor_.
   std::vector<std::size_t> rowBase_;
-  std::vector<double> factor_;         // L left of the diagonal, 1/D on it (row profiles)
-  std::vector<double> rhs_;            // the guard's scratch (one island at a time)
-  std::vector<double> solveScratch_;   // per covered row: solve()'s right side, by group
-  std::vector<double> factorScratch_;  // per covered row: factor()'s 1/D, coupleBounded's u
+  std::vector<double> factor_;                // L left of the diagonal, 1/D on it (row profiles)
+  std::vector<double> poseFactor_;            // the same at the new pose (factorAtPose)
+  std::vector<double> rhs_;                   // the guard's scratch (one island at a time)
+  mutable std::vector<double> solveScratch_;  // per covered row: a solve's right side, by group
+  std::vector<double> factorScratch_;         // per covered row: factor()'s 1/D, coupleBounded's u
   std::size_t factorSize_ = 0;
   std::vector<BoundedRow> bounded_;
   std::vector<double> weights_;

@@ -390,6 +390,8 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
     recordStageEnergy(in, s, After::Positions, sub, substeps, stats);
     if (s.relaxIterations > 0 && s.relaxCancelsDrift) relaxAgainstDrift(in, h);
     relax(s, h);
+    // The step's last pose closes its rigid joints (velocities stay).
+    if (sub == substeps - 1) projectPositions(in, s);
     recordStageEnergy(in, s, After::Relax, sub, substeps, stats);
     if (countEnergy) {
       guard_.addWork(blocks_, rows_, bodies_, islandStart_, islandBegin_, islandEnd_);
@@ -782,7 +784,10 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
           if (blk.unilateral || !islandBlocks().solvesEquality(bi)) continue;
           for (int i = 0; i < blk.equality; ++i) {
             ConstraintRow& row = rows_[blk.firstRow + i];
-            if (row.softness == &*s.rigidJointSoftness) row.softness = &islandRigid_;
+            if (row.softness == &*s.rigidJointSoftness) {
+              row.softness = &islandRigid_;
+              row.projected = true;
+            }
           }
         }
       }
@@ -1805,6 +1810,132 @@ void Solver::integratePositions(const StepInput& in, const SolverSettings& s, do
     }
     b.orientation = turn(b.orientation, b.rotation, w, h);
   });
+}
+
+// Post-stabilization (SolverSettings::positionProjections): each island
+// solved as one island block moves its bodies along M^-1 J^T so that its
+// rigid equality rows, measured at the pose the position update left,
+// close to first order. K is formed and factored again at that pose: with
+// the sub-step's own (the Jacobians of its start) a whipping chain's
+// links, turned by w h since, took a step that missed by as much as it
+// moved and the errors grew pass after pass. Later passes keep that
+// factor and measure the errors again. A pass that leaves the island's
+// largest error larger than it found it (a Newton step too far from the
+// linear, as when a whip's light links turn most of a radian in a
+// sub-step) is taken back and the island keeps the pose before it.
+// Velocities are left alone.
+void Solver::projectPositions(const StepInput& in, const SolverSettings& s) {
+  if (s.positionProjections <= 0 || !useIslandBlock_ || !s.rigidJointSoftness) return;
+  IslandBlocks& islands = islandBlocks();
+  // Grow only while warming up.
+  if (projectionError_.size() < rows_.size()) {
+    projectionError_.resize(rows_.size());
+    projectionImpulse_.resize(rows_.size());
+    projectionRows_.resize(rows_.size());
+  }
+  if (projectionMove_.size() < bodies_.size()) {
+    projectionMove_.resize(bodies_.size(), Vec3::Zero());
+    projectionTurn_.resize(bodies_.size(), Vec3::Zero());
+    projectionInvI_.resize(bodies_.size());
+    projectionX_.resize(bodies_.size());
+    projectionQ_.resize(bodies_.size());
+  }
+  for (int island = islandBegin_; island < islandEnd_; ++island) {
+    if (!islands.covers(island)) continue;
+    const std::int32_t first = islandStart_[island], end = islandStart_[island + 1];
+    // M^-1 with the inertia turned to the pose: a thin link's inverse
+    // inertia about its own axis is many times that across it, and about
+    // the axis it had at the sub-step's start the projection would turn
+    // it freely where that turn now moves its anchors.
+    for (std::int32_t bi = first; bi < end; ++bi) {
+      const ConstraintBlock& blk = blocks_[bi];
+      for (const std::int32_t i : {blk.bodyA, blk.bodyB})
+        projectionInvI_[i] = i == dummy_ || bodies_[i].invMass == 0.0
+                                 ? Mat3::Zero()
+                                 : in.bodies[i].invInertiaWorld();
+    }
+    double lastError = kInf;
+    for (int pass = 0; pass <= s.positionProjections; ++pass) {
+      // The rows' errors at the pose now; on the first pass their
+      // Jacobians and M^-1 J^T too.
+      double error = 0.0;
+      for (std::int32_t bi = first; bi < end; ++bi) {
+        const ConstraintBlock& blk = blocks_[bi];
+        if (blk.joint < 0 || blk.equality == 0 || !islands.solvesEquality(bi)) continue;
+        const Joint& joint = in.joints[blk.joint];
+        JointState state = joint.state;  // rows at a pose the step may still move
+        const RowWriter out = writeJointRows(in, joint, state, movedRows_.data());
+        const bool same = out.equalityCount() == blk.equality;
+        for (int i = 0; i < blk.equality; ++i) {
+          const std::int32_t r = blk.firstRow + i;
+          const bool rigid = same && rows_[r].projected && rows_[r].biasKind == RowBias::Baumgarte;
+          projectionError_[r] = rigid ? movedRows_[i].C : 0.0;
+          error = std::max(error, std::abs(projectionError_[r]));
+          if (pass > 0) continue;
+          ConstraintRow& at = projectionRows_[r];
+          const ConstraintRow& fresh = same ? movedRows_[i] : rows_[r];
+          at.linA = fresh.linA;
+          at.angA = fresh.angA;
+          at.linB = fresh.linB;
+          at.angB = fresh.angB;
+          at.invIangA = projectionInvI_[blk.bodyA] * at.angA;
+          at.invIangB = projectionInvI_[blk.bodyB] * at.angB;
+          at.gamma = 0.0;
+        }
+      }
+      if (error > lastError) {  // the last pass made it worse: back to before it
+        forEachIslandBody(first, end, [&](std::int32_t i) {
+          in.bodies[i].position = projectionX_[i];
+          in.bodies[i].orientation = projectionQ_[i];
+        });
+        break;
+      }
+      if (pass == s.positionProjections || error == 0.0) break;
+      lastError = error;
+      for (int g = islands.groupsBegin(island); g < islands.groupsEnd(island); ++g) {
+        if (pass == 0) islands.factorAtPose(g, blocks_, projectionRows_, bodies_);
+        islands.solvePositionErrors(g, projectionError_, projectionImpulse_);
+        islands.forEachRow(g, [&](std::int32_t r, std::int32_t bi) {
+          const ConstraintRow& row = projectionRows_[r];
+          const ConstraintBlock& blk = blocks_[bi];
+          const double lambda = projectionImpulse_[r];
+          projectionMove_[blk.bodyA] += (bodies_[blk.bodyA].invMass * lambda) * row.linA;
+          projectionTurn_[blk.bodyA] += lambda * row.invIangA;
+          projectionMove_[blk.bodyB] += (bodies_[blk.bodyB].invMass * lambda) * row.linB;
+          projectionTurn_[blk.bodyB] += lambda * row.invIangB;
+        });
+      }
+      forEachIslandBody(first, end, [&](std::int32_t i) {
+        Body& b = in.bodies[i];
+        projectionX_[i] = b.position;
+        projectionQ_[i] = b.orientation;
+        b.position += projectionMove_[i];
+        b.orientation = integrateRotation(b.orientation, projectionTurn_[i], 1.0);
+        projectionMove_[i].setZero();
+        projectionTurn_[i].setZero();
+      });
+    }
+  }
+}
+
+// f(i) once for each movable body of blocks [first, end): a body in
+// several of them is marked with this call's stamp at its first.
+template <class F>
+void Solver::forEachIslandBody(std::int32_t first, std::int32_t end, F&& f) {
+  if (++projectionStamp_ == 0) {  // wrapped: no stamp may look current
+    std::fill(projectionSeen_.begin(), projectionSeen_.end(), 0u);
+    projectionStamp_ = 1;
+  }
+  if (projectionSeen_.size() < bodies_.size()) projectionSeen_.resize(bodies_.size(), 0u);
+  for (std::int32_t bi = first; bi < end; ++bi) {
+    const ConstraintBlock& blk = blocks_[bi];
+    for (const std::int32_t i : {blk.bodyA, blk.bodyB}) {
+      if (i == dummy_ || bodies_[i].invMass == 0.0 || projectionSeen_[i] == projectionStamp_)
+        continue;
+      projectionSeen_[i] = projectionStamp_;
+      f(i);
+    }
+  }
 }
 
 // One body's orientation update (RotationUpdate says which).

@@ -155,6 +155,9 @@ class Solver {
   int solve(const SolverSettings& s, int substep, double deadline, StepStats& stats);
   void integratePositions(const StepInput& in, const SolverSettings& s, double h);
   static Quat turn(const Quat& q, const RotationUpdate& r, const Vec3& w, double h);
+  void projectPositions(const StepInput& in, const SolverSettings& s);
+  template <class F>
+  void forEachIslandBody(std::int32_t firstBlock, std::int32_t endBlock, F&& f);
   void relaxAgainstDrift(const StepInput& in, double h);
   void relax(const SolverSettings& s, double h);
   void storeImpulses(const StepInput& in, double h);
@@ -234,6 +237,16 @@ class Solver {
   std::vector<double> blockMatrices_;
   double* matrixOf(const ConstraintBlock& blk) { return blockMatrices_.data() + blk.matrix; }
   std::array<ConstraintRow, kMaxJointSlots> movedRows_;  // a joint's rows at the new pose
+  // Position projection (projectPositions): per row, its error at the new
+  // pose and its position impulse; per solver body, its move and turn.
+  std::vector<double> projectionError_, projectionImpulse_;
+  std::vector<ConstraintRow> projectionRows_;  // Jacobians and M^-1 J^T at the new pose
+  std::vector<Vec3> projectionMove_, projectionTurn_;
+  std::vector<Mat3> projectionInvI_;  // per solver body: its inverse inertia at the new pose
+  std::vector<Vec3> projectionX_;     // per solver body: its pose before the last pass
+  std::vector<Quat> projectionQ_;
+  std::vector<std::uint32_t> projectionSeen_;  // forEachIslandBody's marks
+  std::uint32_t projectionStamp_ = 0;
   // Islands whose joint equality rows are one block: a selection per
   // class (each keeps its choice while its structure stays), and the
   // class whose selection is in use.

@@ -29,7 +29,9 @@ long allocationsAfterWarmUp(const std::string& name, const SolverSettings& setti
 TEST(NoAllocation, StepAllocatesNothingAfterWarmUp) {
   for (const std::string& name : scenes::sceneNames()) {
     SCOPED_TRACE(name);
-    for (SolverSettings s : {SolverSettings::paper(10), SolverSettings::subStepped(4)}) {
+    SolverSettings projected = SolverSettings::subStepped(1);
+    projected.positionProjections = 2;
+    for (SolverSettings s : {SolverSettings::paper(10), SolverSettings::subStepped(4), projected}) {
       s.recordResiduals = true;
       EXPECT_EQ(allocationsAfterWarmUp(name, s), 0);
     }

@@ -165,6 +165,9 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   const dReal maxTravel = dWorldGetBlockMaxTravel(p.s.world);
   dWorldSetBlockMaxTravel(p.s.world, -0.002);
   dWorldSetBlockMaxTravel(p.s.world, INFINITY);
+  const int projections = dWorldGetBlockProjections(p.s.world);
+  dWorldSetBlockProjections(p.s.world, -1);
+  dWorldSetBlockProjections(p.s.world, 17);
   const int contactRows = dWorldGetBlockContactIslandRows(p.s.world);
   dWorldSetBlockContactIslandRows(p.s.world, -3);
   dWorldSetBlockContactIslandRows(p.s.world, 100000);
@@ -200,6 +203,14 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
       << err;
   EXPECT_EQ(maxTravel, 0.005);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockMaxTravel(p.s.world), maxTravel);
+  EXPECT_NE(err.find("dWorldSetBlockProjections(-1): expected 0 to 16; call ignored"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find("dWorldSetBlockProjections(17): expected 0 to 16"), std::string::npos) << err;
+  EXPECT_EQ(projections, 0);  // the sub-stepped preset's
+  EXPECT_EQ(dWorldGetBlockProjections(p.s.world), projections);
+  dWorldSetBlockProjections(p.s.world, 2);
+  EXPECT_EQ(dWorldGetBlockProjections(p.s.world), 2);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 1);  // the sub-stepped preset's
   dWorldSetBlockRetakeTurns(p.s.world, 0);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 0);
