@@ -71,7 +71,8 @@ nlohmann::json summary(const RunResult& r, double quickSolveMs) {
 
 // Every setting of the error-versus-cost study: quickstep's iterations x
 // sub-steps grid (the real rival at equal time) and blockstep's sub-steps,
-// colliding once a frame (ODE's collider) and every sub-step (its own).
+// colliding once a frame (ODE's collider), projected (positionProjections)
+// and colliding every sub-step (its own).
 std::vector<std::string> costGrid() {
   std::vector<std::string> grid;
   for (int it : {10, 20, 50})
@@ -80,6 +81,9 @@ std::vector<std::string> costGrid() {
                      (sub > 1 ? "x" + std::to_string(sub) : ""));
   for (int n : {1, 2, 5, 10, 20, 40})
     grid.push_back("blockstep:substep:" + std::to_string(n));
+  // With the step's last pose projected onto its rigid joints.
+  for (int n : {1, 2, 5, 10})
+    grid.push_back("blockstep:substep:" + std::to_string(n) + ",project=1");
   // Colliding by itself every sub-step, as quickstep's sub-steps collide.
   for (int n : {1, 2, 5, 10})
     grid.push_back("blockstep:substep:" + std::to_string(n) + ",collision=substep");
@@ -464,7 +468,8 @@ int main(int argc, char** argv) {
   bool grid = false;
   app.add_flag("--grid", grid,
                "error versus cost: quickstep 10/20/50 iterations x 1/2/4/10 sub-steps and "
-               "blockstep 1/2/5/10/20/40 sub-steps, in place of --stepper");
+               "blockstep 1/2/5/10/20/40 sub-steps (1/2/5/10 projected too, and colliding "
+               "every sub-step), in place of --stepper");
   std::vector<std::string> sweeps;
   app.add_option("--sweep", sweeps,
                  "key=v1,v2,...: every stepper once per value, with ,key=value added "

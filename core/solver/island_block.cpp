@@ -629,13 +629,13 @@ void IslandBlocks::factorAtPose(int group, const std::vector<ConstraintBlock>& b
 }
 
 void IslandBlocks::solvePositionErrors(int group, const std::vector<double>& error,
-                                       std::vector<double>& lambda) const {
+                                       std::vector<double>& lambda, bool atPose) const {
   const Group& g = groups_[group];
   const std::int32_t* rowOf = &entryRow_[g.firstEntry];
   double* x = &solveScratch_[g.firstEntry];
   for (std::int32_t i = 0; i < g.size; ++i)
     x[i] = -error[rowOf[i]];
-  solveInPlace(g, x, &poseFactor_[g.factor]);
+  solveInPlace(g, x, atPose ? &poseFactor_[g.factor] : nullptr);
   const double scale = 1.0 + g.springShare;
   for (std::int32_t i = 0; i < g.size; ++i)
     lambda[rowOf[i]] = scale * x[i];

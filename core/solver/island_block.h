@@ -130,8 +130,9 @@ class IslandBlocks {
   // mass-relative spring: lambda is of K itself.
   void factorAtPose(int group, const std::vector<ConstraintBlock>& blocks,
                     std::vector<ConstraintRow>& poseRows, const std::vector<SolverBody>& bodies);
-  void solvePositionErrors(int group, const std::vector<double>& error,
-                           std::vector<double>& lambda) const;
+  // atPose: with factorAtPose's factor, else with the (sub-)step's own.
+  void solvePositionErrors(int group, const std::vector<double>& error, std::vector<double>& lambda,
+                           bool atPose) const;
   // f(solver row, its block) for each of a group's rows.
   template <class F>
   void forEachRow(int group, F f) const {

@@ -391,7 +391,7 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
     if (s.relaxIterations > 0 && s.relaxCancelsDrift) relaxAgainstDrift(in, h);
     relax(s, h);
     // The step's last pose closes its rigid joints (velocities stay).
-    if (sub == substeps - 1) projectPositions(in, s);
+    if (sub == substeps - 1) projectPositions(in, s, h, sub);
     recordStageEnergy(in, s, After::Relax, sub, substeps, stats);
     if (countEnergy) {
       guard_.addWork(blocks_, rows_, bodies_, islandStart_, islandBegin_, islandEnd_);
@@ -1814,17 +1814,20 @@ void Solver::integratePositions(const StepInput& in, const SolverSettings& s, do
 
 // Post-stabilization (SolverSettings::positionProjections): each island
 // solved as one island block moves its bodies along M^-1 J^T so that its
-// rigid equality rows, measured at the pose the position update left,
-// close to first order. K is formed and factored again at that pose: with
-// the sub-step's own (the Jacobians of its start) a whipping chain's
-// links, turned by w h since, took a step that missed by as much as it
-// moved and the errors grew pass after pass. Later passes keep that
-// factor and measure the errors again. A pass that leaves the island's
-// largest error larger than it found it (a Newton step too far from the
-// linear, as when a whip's light links turn most of a radian in a
-// sub-step) is taken back and the island keeps the pose before it.
-// Velocities are left alone.
-void Solver::projectPositions(const StepInput& in, const SolverSettings& s) {
+// rigid equality rows, measured at the pose the step left, close to
+// first order: a Newton step on the joints' positions. Its K is the
+// sub-step's own factor while the island's bodies turned less than
+// kStaleProjectionTurn since their rows were prepared (the Jacobians of
+// then, off by about that turn, take out all but that share of the
+// error); past it K is formed and factored again at the pose, with the
+// inertia turned there too: with the prepared factor a whipping chain's
+// links, turned by w h since, took steps that missed by as much as they
+// moved and the errors grew pass after pass. Later passes keep the
+// factor and measure the errors again. A pass that turns a body farther
+// than kLinearProjectionTurn (its second-order error may then rival what
+// it closed) is checked, and taken back if it left the island's largest
+// error larger than it found it. Velocities are left alone.
+void Solver::projectPositions(const StepInput& in, const SolverSettings& s, double h, int sub) {
   if (s.positionProjections <= 0 || !useIslandBlock_ || !s.rigidJointSoftness) return;
   IslandBlocks& islands = islandBlocks();
   // Grow only while warming up.
@@ -1840,24 +1843,26 @@ void Solver::projectPositions(const StepInput& in, const SolverSettings& s) {
     projectionX_.resize(bodies_.size());
     projectionQ_.resize(bodies_.size());
   }
+  // Sub-steps since the rows were prepared, this one included.
+  const double sincePrepared = h * (sub - preparedAt_ + 1);
   for (int island = islandBegin_; island < islandEnd_; ++island) {
     if (!islands.covers(island)) continue;
     const std::int32_t first = islandStart_[island], end = islandStart_[island + 1];
-    // M^-1 with the inertia turned to the pose: a thin link's inverse
-    // inertia about its own axis is many times that across it, and about
-    // the axis it had at the sub-step's start the projection would turn
-    // it freely where that turn now moves its anchors.
-    for (std::int32_t bi = first; bi < end; ++bi) {
-      const ConstraintBlock& blk = blocks_[bi];
-      for (const std::int32_t i : {blk.bodyA, blk.bodyB})
-        projectionInvI_[i] = i == dummy_ || bodies_[i].invMass == 0.0
-                                 ? Mat3::Zero()
-                                 : in.bodies[i].invInertiaWorld();
+    double fastest = 0.0;  // rad/s, the island's fastest turn this sub-step
+    forEachIslandBody(first, end, [&](std::int32_t i) {
+      fastest = std::max(fastest, in.bodies[i].angularVelocity.squaredNorm());
+    });
+    const bool atPose = std::sqrt(fastest) * sincePrepared > kStaleProjectionTurn;
+    if (atPose) {
+      forEachIslandBody(
+          first, end, [&](std::int32_t i) { projectionInvI_[i] = in.bodies[i].invInertiaWorld(); });
     }
+    const std::vector<ConstraintRow>& jacobians = atPose ? projectionRows_ : rows_;
     double lastError = kInf;
-    for (int pass = 0; pass <= s.positionProjections; ++pass) {
-      // The rows' errors at the pose now; on the first pass their
-      // Jacobians and M^-1 J^T too.
+    bool check = false;  // the last pass is to be checked
+    for (int pass = 0; pass < s.positionProjections || check; ++pass) {
+      // The rows' errors at the pose now; on the first pass at the pose
+      // their Jacobians and M^-1 J^T too.
       double error = 0.0;
       for (std::int32_t bi = first; bi < end; ++bi) {
         const ConstraintBlock& blk = blocks_[bi];
@@ -1871,7 +1876,7 @@ void Solver::projectPositions(const StepInput& in, const SolverSettings& s) {
           const bool rigid = same && rows_[r].projected && rows_[r].biasKind == RowBias::Baumgarte;
           projectionError_[r] = rigid ? movedRows_[i].C : 0.0;
           error = std::max(error, std::abs(projectionError_[r]));
-          if (pass > 0) continue;
+          if (pass > 0 || !atPose) continue;
           ConstraintRow& at = projectionRows_[r];
           const ConstraintRow& fresh = same ? movedRows_[i] : rows_[r];
           at.linA = fresh.linA;
@@ -1893,10 +1898,10 @@ void Solver::projectPositions(const StepInput& in, const SolverSettings& s) {
       if (pass == s.positionProjections || error == 0.0) break;
       lastError = error;
       for (int g = islands.groupsBegin(island); g < islands.groupsEnd(island); ++g) {
-        if (pass == 0) islands.factorAtPose(g, blocks_, projectionRows_, bodies_);
-        islands.solvePositionErrors(g, projectionError_, projectionImpulse_);
+        if (pass == 0 && atPose) islands.factorAtPose(g, blocks_, projectionRows_, bodies_);
+        islands.solvePositionErrors(g, projectionError_, projectionImpulse_, atPose);
         islands.forEachRow(g, [&](std::int32_t r, std::int32_t bi) {
-          const ConstraintRow& row = projectionRows_[r];
+          const ConstraintRow& row = jacobians[r];
           const ConstraintBlock& blk = blocks_[bi];
           const double lambda = projectionImpulse_[r];
           projectionMove_[blk.bodyA] += (bodies_[blk.bodyA].invMass * lambda) * row.linA;
@@ -1905,15 +1910,18 @@ void Solver::projectPositions(const StepInput& in, const SolverSettings& s) {
           projectionTurn_[blk.bodyB] += lambda * row.invIangB;
         });
       }
+      double largestTurn = 0.0;
       forEachIslandBody(first, end, [&](std::int32_t i) {
         Body& b = in.bodies[i];
         projectionX_[i] = b.position;
         projectionQ_[i] = b.orientation;
+        largestTurn = std::max(largestTurn, projectionTurn_[i].squaredNorm());
         b.position += projectionMove_[i];
         b.orientation = integrateRotation(b.orientation, projectionTurn_[i], 1.0);
         projectionMove_[i].setZero();
         projectionTurn_[i].setZero();
       });
+      check = largestTurn > kLinearProjectionTurn * kLinearProjectionTurn;
     }
   }
 }

@@ -155,7 +155,12 @@ class Solver {
   int solve(const SolverSettings& s, int substep, double deadline, StepStats& stats);
   void integratePositions(const StepInput& in, const SolverSettings& s, double h);
   static Quat turn(const Quat& q, const RotationUpdate& r, const Vec3& w, double h);
-  void projectPositions(const StepInput& in, const SolverSettings& s);
+  void projectPositions(const StepInput& in, const SolverSettings& s, double h, int sub);
+  // Position projection keeps the prepared factor while an island turned
+  // less than this since its rows were prepared (rad), and checks a pass
+  // that turned a body farther than kLinearProjectionTurn (rad).
+  static constexpr double kStaleProjectionTurn = 0.05;
+  static constexpr double kLinearProjectionTurn = 0.05;
   template <class F>
   void forEachIslandBody(std::int32_t firstBlock, std::int32_t endBlock, F&& f);
   void relaxAgainstDrift(const StepInput& in, double h);
