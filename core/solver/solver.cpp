@@ -1843,12 +1843,12 @@ void Solver::projectPositions(const StepInput& in, const SolverSettings& s, doub
     projectionX_.resize(bodies_.size());
     projectionQ_.resize(bodies_.size());
   }
-  // Sub-steps since the rows were prepared, this one included.
+  // Time since the rows were prepared (s), this sub-step included.
   const double sincePrepared = h * (sub - preparedAt_ + 1);
   for (int island = islandBegin_; island < islandEnd_; ++island) {
     if (!islands.covers(island)) continue;
     const std::int32_t first = islandStart_[island], end = islandStart_[island + 1];
-    double fastest = 0.0;  // rad/s, the island's fastest turn this sub-step
+    double fastest = 0.0;  // (rad/s)^2, the island's fastest turn this sub-step
     forEachIslandBody(first, end, [&](std::int32_t i) {
       fastest = std::max(fastest, in.bodies[i].angularVelocity.squaredNorm());
     });
