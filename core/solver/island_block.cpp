@@ -622,8 +622,6 @@ void IslandBlocks::solve(int group, bool useBias, const std::vector<ConstraintBl
 void IslandBlocks::factorAtPose(int group, const std::vector<ConstraintBlock>& blocks,
                                 std::vector<ConstraintRow>& poseRows,
                                 const std::vector<SolverBody>& bodies) {
-  // Grows only while warming up.
-  if (poseFactor_.size() < factor_.size()) poseFactor_.resize(factor_.size());
   const Group& g = groups_[group];
   factorInto(g, blocks, poseRows, bodies, &poseFactor_[g.factor]);
 }

@@ -128,6 +128,10 @@ class IslandBlocks {
   // rows' errors e out to first order (e and lambda indexed like the
   // solver's rows). The factor is of (1 + c) K where the rows share a
   // mass-relative spring: lambda is of K itself.
+  // Room for factorAtPose's factors (before groups are factored at once).
+  void preparePoseFactors() {
+    if (poseFactor_.size() < factor_.size()) poseFactor_.resize(factor_.size());
+  }
   void factorAtPose(int group, const std::vector<ConstraintBlock>& blocks,
                     std::vector<ConstraintRow>& poseRows, const std::vector<SolverBody>& bodies);
   // atPose: with factorAtPose's factor, else with the (sub-)step's own.

@@ -1829,7 +1829,6 @@ void Solver::integratePositions(const StepInput& in, const SolverSettings& s, do
 // error larger than it found it. Velocities are left alone.
 void Solver::projectPositions(const StepInput& in, const SolverSettings& s, double h, int sub) {
   if (s.positionProjections <= 0 || !useIslandBlock_ || !s.rigidJointSoftness) return;
-  IslandBlocks& islands = islandBlocks();
   // Grow only while warming up.
   if (projectionError_.size() < rows_.size()) {
     projectionError_.resize(rows_.size());
@@ -1843,106 +1842,115 @@ void Solver::projectPositions(const StepInput& in, const SolverSettings& s, doub
     projectionX_.resize(bodies_.size());
     projectionQ_.resize(bodies_.size());
   }
+  const std::size_t slots = pooled_ ? static_cast<std::size_t>(pool_->threads) : 1;
+  if (projectionScratch_.size() < slots) projectionScratch_.resize(slots);
+  islandBlocks().preparePoseFactors();
   // Time since the rows were prepared (s), this sub-step included.
   const double sincePrepared = h * (sub - preparedAt_ + 1);
-  for (int island = islandBegin_; island < islandEnd_; ++island) {
-    if (!islands.covers(island)) continue;
-    const std::int32_t first = islandStart_[island], end = islandStart_[island + 1];
-    double fastest = 0.0;  // (rad/s)^2, the island's fastest turn this sub-step
-    forEachIslandBody(first, end, [&](std::int32_t i) {
-      fastest = std::max(fastest, in.bodies[i].angularVelocity.squaredNorm());
-    });
-    const bool atPose = std::sqrt(fastest) * sincePrepared > kStaleProjectionTurn;
-    if (atPose) {
-      forEachIslandBody(
-          first, end, [&](std::int32_t i) { projectionInvI_[i] = in.bodies[i].invInertiaWorld(); });
-    }
-    const std::vector<ConstraintRow>& jacobians = atPose ? projectionRows_ : rows_;
-    double lastError = kInf;
-    bool check = false;  // the last pass is to be checked
-    for (int pass = 0; pass < s.positionProjections || check; ++pass) {
-      // The rows' errors at the pose now; on the first pass at the pose
-      // their Jacobians and M^-1 J^T too.
-      double error = 0.0;
-      for (std::int32_t bi = first; bi < end; ++bi) {
-        const ConstraintBlock& blk = blocks_[bi];
-        if (blk.joint < 0 || blk.equality == 0 || !islands.solvesEquality(bi)) continue;
-        const Joint& joint = in.joints[blk.joint];
-        JointState state = joint.state;  // rows at a pose the step may still move
-        const RowWriter out = writeJointRows(in, joint, state, movedRows_.data());
-        const bool same = out.equalityCount() == blk.equality;
-        for (int i = 0; i < blk.equality; ++i) {
-          const std::int32_t r = blk.firstRow + i;
-          const bool rigid = same && rows_[r].projected && rows_[r].biasKind == RowBias::Baumgarte;
-          projectionError_[r] = rigid ? movedRows_[i].C : 0.0;
-          error = std::max(error, std::abs(projectionError_[r]));
-          if (pass > 0 || !atPose) continue;
-          ConstraintRow& at = projectionRows_[r];
-          const ConstraintRow& fresh = same ? movedRows_[i] : rows_[r];
-          at.linA = fresh.linA;
-          at.angA = fresh.angA;
-          at.linB = fresh.linB;
-          at.angB = fresh.angB;
-          at.invIangA = projectionInvI_[blk.bodyA] * at.angA;
-          at.invIangB = projectionInvI_[blk.bodyB] * at.angB;
-          at.gamma = 0.0;
-        }
-      }
-      if (error > lastError) {  // the last pass made it worse: back to before it
-        forEachIslandBody(first, end, [&](std::int32_t i) {
-          in.bodies[i].position = projectionX_[i];
-          in.bodies[i].orientation = projectionQ_[i];
-        });
-        break;
-      }
-      if (pass == s.positionProjections || error == 0.0) break;
-      lastError = error;
-      for (int g = islands.groupsBegin(island); g < islands.groupsEnd(island); ++g) {
-        if (pass == 0 && atPose) islands.factorAtPose(g, blocks_, projectionRows_, bodies_);
-        islands.solvePositionErrors(g, projectionError_, projectionImpulse_, atPose);
-        islands.forEachRow(g, [&](std::int32_t r, std::int32_t bi) {
-          const ConstraintRow& row = jacobians[r];
-          const ConstraintBlock& blk = blocks_[bi];
-          const double lambda = projectionImpulse_[r];
-          projectionMove_[blk.bodyA] += (bodies_[blk.bodyA].invMass * lambda) * row.linA;
-          projectionTurn_[blk.bodyA] += lambda * row.invIangA;
-          projectionMove_[blk.bodyB] += (bodies_[blk.bodyB].invMass * lambda) * row.linB;
-          projectionTurn_[blk.bodyB] += lambda * row.invIangB;
-        });
-      }
-      double largestTurn = 0.0;
-      forEachIslandBody(first, end, [&](std::int32_t i) {
-        Body& b = in.bodies[i];
-        projectionX_[i] = b.position;
-        projectionQ_[i] = b.orientation;
-        largestTurn = std::max(largestTurn, projectionTurn_[i].squaredNorm());
-        b.position += projectionMove_[i];
-        b.orientation = integrateRotation(b.orientation, projectionTurn_[i], 1.0);
-        projectionMove_[i].setZero();
-        projectionTurn_[i].setZero();
-      });
-      check = largestTurn > kLinearProjectionTurn * kLinearProjectionTurn;
-    }
-  }
+  // Islands share no movable body, and each writes only its own rows,
+  // bodies and groups: any thread count gives one thread's bits.
+  forEachIndex(
+      islandEnd_ - islandBegin_,
+      [&](int k) {
+        const int slot = pooled_ ? tbb::this_task_arena::current_thread_index() : 0;
+        projectIsland(in, s, islandBegin_ + k, sincePrepared, projectionScratch_[slot]);
+      },
+      1);
 }
 
-// f(i) once for each movable body of blocks [first, end): a body in
-// several of them is marked with this call's stamp at its first.
-template <class F>
-void Solver::forEachIslandBody(std::int32_t first, std::int32_t end, F&& f) {
-  if (++projectionStamp_ == 0) {  // wrapped: no stamp may look current
-    std::fill(projectionSeen_.begin(), projectionSeen_.end(), 0u);
-    projectionStamp_ = 1;
-  }
-  if (projectionSeen_.size() < bodies_.size()) projectionSeen_.resize(bodies_.size(), 0u);
-  for (std::int32_t bi = first; bi < end; ++bi) {
-    const ConstraintBlock& blk = blocks_[bi];
-    for (const std::int32_t i : {blk.bodyA, blk.bodyB}) {
-      if (i == dummy_ || bodies_[i].invMass == 0.0 || projectionSeen_[i] == projectionStamp_)
-        continue;
-      projectionSeen_[i] = projectionStamp_;
-      f(i);
+// One island's projection (projectPositions), with a thread's own room
+// for a joint's rows. A body several blocks share is visited once per
+// block: each visit does what the first did (saves the same pose, reads
+// the same turn) or nothing (its move was applied and cleared).
+void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int island,
+                           double sincePrepared, JointRowScratch& scratch) {
+  IslandBlocks& islands = islandBlocks();
+  if (!islands.covers(island)) return;
+  const std::int32_t first = islandStart_[island], end = islandStart_[island + 1];
+  auto forEachBody = [&](auto&& f) {
+    for (std::int32_t bi = first; bi < end; ++bi) {
+      const ConstraintBlock& blk = blocks_[bi];
+      for (const std::int32_t i : {blk.bodyA, blk.bodyB})
+        if (i != dummy_ && bodies_[i].invMass != 0.0) f(i);
     }
+  };
+  double fastest = 0.0;  // (rad/s)^2, the island's fastest turn this sub-step
+  forEachBody([&](std::int32_t i) {
+    fastest = std::max(fastest, in.bodies[i].angularVelocity.squaredNorm());
+  });
+  const bool atPose = std::sqrt(fastest) * sincePrepared > kStaleProjectionTurn;
+  if (atPose)
+    forEachBody([&](std::int32_t i) { projectionInvI_[i] = in.bodies[i].invInertiaWorld(); });
+  const std::vector<ConstraintRow>& jacobians = atPose ? projectionRows_ : rows_;
+  double lastError = kInf;
+  bool check = false;  // the last pass is to be checked
+  for (int pass = 0; pass < s.positionProjections || check; ++pass) {
+    // The rows' errors at the pose now; on the first pass at the pose
+    // their Jacobians and M^-1 J^T too.
+    double error = 0.0;
+    for (std::int32_t bi = first; bi < end; ++bi) {
+      const ConstraintBlock& blk = blocks_[bi];
+      if (blk.joint < 0 || blk.equality == 0 || !islands.solvesEquality(bi)) continue;
+      const Joint& joint = in.joints[blk.joint];
+      JointState state = joint.state;  // rows at a pose the step may still move
+      const RowWriter out = writeJointRows(in, joint, state, scratch.data());
+      const bool same = out.equalityCount() == blk.equality;
+      for (int i = 0; i < blk.equality; ++i) {
+        const std::int32_t r = blk.firstRow + i;
+        const bool rigid = same && rows_[r].projected && rows_[r].biasKind == RowBias::Baumgarte;
+        projectionError_[r] = rigid ? scratch[i].C : 0.0;
+        error = std::max(error, std::abs(projectionError_[r]));
+        if (pass > 0 || !atPose) continue;
+        ConstraintRow& at = projectionRows_[r];
+        const ConstraintRow& fresh = same ? scratch[i] : rows_[r];
+        at.linA = fresh.linA;
+        at.angA = fresh.angA;
+        at.linB = fresh.linB;
+        at.angB = fresh.angB;
+        at.invIangA = projectionInvI_[blk.bodyA] * at.angA;
+        at.invIangB = projectionInvI_[blk.bodyB] * at.angB;
+        at.gamma = 0.0;
+      }
+    }
+    if (error > lastError) {  // the last pass made it worse: back to before it
+      forEachBody([&](std::int32_t i) {
+        in.bodies[i].position = projectionX_[i];
+        in.bodies[i].orientation = projectionQ_[i];
+      });
+      return;
+    }
+    if (pass == s.positionProjections || error == 0.0) return;
+    lastError = error;
+    for (int g = islands.groupsBegin(island); g < islands.groupsEnd(island); ++g) {
+      if (pass == 0 && atPose) islands.factorAtPose(g, blocks_, projectionRows_, bodies_);
+      islands.solvePositionErrors(g, projectionError_, projectionImpulse_, atPose);
+      islands.forEachRow(g, [&](std::int32_t r, std::int32_t bi) {
+        const ConstraintRow& row = jacobians[r];
+        const ConstraintBlock& blk = blocks_[bi];
+        const double lambda = projectionImpulse_[r];
+        projectionMove_[blk.bodyA] += (bodies_[blk.bodyA].invMass * lambda) * row.linA;
+        projectionTurn_[blk.bodyA] += lambda * row.invIangA;
+        projectionMove_[blk.bodyB] += (bodies_[blk.bodyB].invMass * lambda) * row.linB;
+        projectionTurn_[blk.bodyB] += lambda * row.invIangB;
+      });
+    }
+    forEachBody([&](std::int32_t i) {
+      projectionX_[i] = in.bodies[i].position;
+      projectionQ_[i] = in.bodies[i].orientation;
+    });
+    double largestTurn = 0.0;
+    forEachBody([&](std::int32_t i) {
+      Vec3& move = projectionMove_[i];
+      Vec3& turnBy = projectionTurn_[i];
+      if (move.isZero() && turnBy.isZero()) return;
+      Body& b = in.bodies[i];
+      largestTurn = std::max(largestTurn, turnBy.squaredNorm());
+      b.position += move;
+      b.orientation = integrateRotation(b.orientation, turnBy, 1.0);
+      move.setZero();
+      turnBy.setZero();
+    });
+    check = largestTurn > kLinearProjectionTurn * kLinearProjectionTurn;
   }
 }
 

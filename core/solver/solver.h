@@ -161,8 +161,9 @@ class Solver {
   // that turned a body farther than kLinearProjectionTurn (rad).
   static constexpr double kStaleProjectionTurn = 0.05;
   static constexpr double kLinearProjectionTurn = 0.05;
-  template <class F>
-  void forEachIslandBody(std::int32_t firstBlock, std::int32_t endBlock, F&& f);
+  using JointRowScratch = std::array<ConstraintRow, kMaxJointSlots>;
+  void projectIsland(const StepInput& in, const SolverSettings& s, int island, double sincePrepared,
+                     JointRowScratch& scratch);
   void relaxAgainstDrift(const StepInput& in, double h);
   void relax(const SolverSettings& s, double h);
   void storeImpulses(const StepInput& in, double h);
@@ -250,8 +251,7 @@ class Solver {
   std::vector<Mat3> projectionInvI_;  // per solver body: its inverse inertia at the new pose
   std::vector<Vec3> projectionX_;     // per solver body: its pose before the last pass
   std::vector<Quat> projectionQ_;
-  std::vector<std::uint32_t> projectionSeen_;  // forEachIslandBody's marks
-  std::uint32_t projectionStamp_ = 0;
+  std::vector<JointRowScratch> projectionScratch_;  // a joint's rows at the pose, per thread
   // Islands whose joint equality rows are one block: a selection per
   // class (each keeps its choice while its structure stays), and the
   // class whose selection is in use.

@@ -174,7 +174,8 @@ TEST(PluginThreads, MovedCallbackSteppingAnotherWorldKeepsEveryCallback) {
 // Islands swept on several threads (dWorldSetBlockThreads): 200 hinge
 // chains of three links (enough bodies and blocks for their loops to be
 // shared out too), each set swinging at its own rate (island
-// blocks, one per chain), and 20 boxes dropped onto the ground, held by
+// blocks, one per chain, projected at each step's end), and 20 boxes
+// dropped onto the ground, held by
 // contacts made each step. The islands share no movable body, so every
 // thread count must give the same bits as one thread.
 struct ManyIslands {
@@ -199,6 +200,7 @@ struct ManyIslands {
       dBodySetAngularVel(boxes.back(), 0.0, 0.0, 0.1 * k);
     }
     dWorldSetBlockSubsteps(s.world, 4);
+    dWorldSetBlockProjections(s.world, 1);  // each chain's last pose projected on its thread
     dWorldSetBlockThreads(s.world, threads);
   }
   ~ManyIslands() { dJointGroupDestroy(contacts); }
