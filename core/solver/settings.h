@@ -145,18 +145,20 @@ struct SolverSettings {
   // Cline and Pai 2003, "Post-stabilization for rigid body simulation
   // with contact and constraints"): after the last sub-step's relax, an
   // island whose joint equality rows are one island block moves its
-  // bodies by dx = M^-1 J^T lambda with K lambda = -C(x), C, J and K
-  // formed at that pose, this many times (Solver::projectPositions). The
+  // bodies by dx = M^-1 J^T lambda with K lambda = -C(x), C measured at
+  // that pose (J and K too once the island has turned since its rows were
+  // prepared), this many times (Solver::projectPositions). The
   // velocity solve is linear in the bodies' motion, so a joint turning
   // at w opens by about r (w h)^2 / 2 a sub-step (relaxAgainstDrift's
   // comment) and the push-back leaves errors of that size: the ragdoll of
   // ../shared/SCENES.md at one 1/60 s sub-step opened 5.4 mm, projected
-  // once 0.004 mm. It moves positions only: the velocities are those of
+  // once 0.005 mm. It moves positions only: the velocities are those of
   // the step without it, bit for bit. Only the rows made rigid in an
   // island block (rigidJointSoftness) are projected: a spring keeps its
   // stretch. Off in the presets: a slow double pendulum (ODE's
   // demo_dhinge) ended 0.2 mm farther from ODE's converged answer with
-  // it, which its check cannot tell from ODE's own (README). 0: off.
+  // it, which its check cannot tell from ODE's own, and a bridge its
+  // crate lands on gained twice the energy (README). 0: off.
   int positionProjections = 0;
   // Start each solve from the last one's impulses, scaled by the step
   // ratio. Off in the paper preset: with plain Baumgarte (ERP) rows and
