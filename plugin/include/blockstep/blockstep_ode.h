@@ -169,7 +169,7 @@ ODE_API int dWorldGetBlockRelaxDrift(dWorldID w);
  * island whose joint equality rows are solved as one island block moves
  * its bodies, not their velocities, so that its rigid joint rows close at
  * the step's last pose, this many times (0 to 16; 0, the default: off).
- * The ragdoll at one sub-step a frame: joints 5.4 mm apart without, 0.004
+ * The ragdoll at one sub-step a frame: joints 5.4 mm apart without, 0.005
  * mm with one. Holds under every solver that makes joint rows rigid in
  * island blocks (the sub-stepped ones); the default is the solver's own.
  * BLOCKSTEP_PROJECTIONS=N. */
