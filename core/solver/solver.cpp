@@ -1867,11 +1867,12 @@ void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
   IslandBlocks& islands = islandBlocks();
   if (!islands.covers(island)) return;
   const std::int32_t first = islandStart_[island], end = islandStart_[island + 1];
+  auto movable = [&](std::int32_t i) { return i != dummy_ && bodies_[i].invMass != 0.0; };
   auto forEachBody = [&](auto&& f) {
     for (std::int32_t bi = first; bi < end; ++bi) {
       const ConstraintBlock& blk = blocks_[bi];
       for (const std::int32_t i : {blk.bodyA, blk.bodyB})
-        if (i != dummy_ && bodies_[i].invMass != 0.0) f(i);
+        if (movable(i)) f(i);
     }
   };
   double fastest = 0.0;  // (rad/s)^2, the island's fastest turn this sub-step
@@ -1907,8 +1908,12 @@ void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
         at.angA = fresh.angA;
         at.linB = fresh.linB;
         at.angB = fresh.angB;
-        at.invIangA = projectionInvI_[blk.bodyA] * at.angA;
-        at.invIangB = projectionInvI_[blk.bodyB] * at.angB;
+        // The static frame and kinematic bodies do not move (and their
+        // inverse inertia is not read: islands on other threads share them).
+        at.invIangA =
+            movable(blk.bodyA) ? Vec3(projectionInvI_[blk.bodyA] * at.angA) : Vec3(Vec3::Zero());
+        at.invIangB =
+            movable(blk.bodyB) ? Vec3(projectionInvI_[blk.bodyB] * at.angB) : Vec3(Vec3::Zero());
         at.gamma = 0.0;
       }
     }
@@ -1928,10 +1933,15 @@ void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
         const ConstraintRow& row = jacobians[r];
         const ConstraintBlock& blk = blocks_[bi];
         const double lambda = projectionImpulse_[r];
-        projectionMove_[blk.bodyA] += (bodies_[blk.bodyA].invMass * lambda) * row.linA;
-        projectionTurn_[blk.bodyA] += lambda * row.invIangA;
-        projectionMove_[blk.bodyB] += (bodies_[blk.bodyB].invMass * lambda) * row.linB;
-        projectionTurn_[blk.bodyB] += lambda * row.invIangB;
+        // Only movable bodies: the others are shared with other islands.
+        if (movable(blk.bodyA)) {
+          projectionMove_[blk.bodyA] += (bodies_[blk.bodyA].invMass * lambda) * row.linA;
+          projectionTurn_[blk.bodyA] += lambda * row.invIangA;
+        }
+        if (movable(blk.bodyB)) {
+          projectionMove_[blk.bodyB] += (bodies_[blk.bodyB].invMass * lambda) * row.linB;
+          projectionTurn_[blk.bodyB] += lambda * row.invIangB;
+        }
       });
     }
     forEachBody([&](std::int32_t i) {
