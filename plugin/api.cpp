@@ -223,6 +223,10 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_CHAIN_BLOCKS", v, 0, n, 1)) {
     s.chainBlocks = n != 0;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_ISLAND_CONTACTS");
+      v && parseInt("BLOCKSTEP_ISLAND_CONTACTS", v, 0, n, 1)) {
+    s.islandBlockContacts = n != 0;
+  }
   // Angles, rad (parseReal takes finite numbers >= 0 only; 0: off).
   if (const char* v = std::getenv("BLOCKSTEP_MAX_TURN");
       v && parseReal("BLOCKSTEP_MAX_TURN", v, x)) {
@@ -617,6 +621,13 @@ void dWorldSetBlockChainBlocks(dWorldID w, int on) {
 }
 int dWorldGetBlockChainBlocks(dWorldID w) {
   return worldFlag(__func__, w, &ode::BridgeSettings::chainBlocks, &SolverSettings::chainBlocks);
+}
+void dWorldSetBlockIslandContacts(dWorldID w, int on) {
+  setWorldFlag(__func__, w, on, &ode::BridgeSettings::islandBlockContacts);
+}
+int dWorldGetBlockIslandContacts(dWorldID w) {
+  return worldFlag(__func__, w, &ode::BridgeSettings::islandBlockContacts,
+                   &SolverSettings::islandBlockContacts);
 }
 // A world's setting of a quantity >= 0 (0: off) held apart from its
 // solver: a bad value is said ("expected <what>") and ignored; unset, the

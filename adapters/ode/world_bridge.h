@@ -58,6 +58,9 @@ struct BridgeSettings {
   // Islands larger than that cut into chains (SolverSettings::chainBlocks;
   // unset: the solver's own).
   std::optional<bool> chainBlocks;
+  // Contacts of island blocks in their joints' null space
+  // (SolverSettings::islandBlockContacts; unset: the solver's own).
+  std::optional<bool> islandBlockContacts;
   // Contact islands as one exact block up to this many normal rows
   // (SolverSettings::contactIslandRows; unset: the solver's own).
   std::optional<int> contactIslandRows;

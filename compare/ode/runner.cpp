@@ -81,6 +81,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.rowByRow) dWorldSetBlockMode(w, *o.rowByRow ? dBlockModeRowByRow : dBlockModeBlock);
   if (o.islandRows) dWorldSetBlockIslandBlockRows(w, *o.islandRows);
   if (o.chains) dWorldSetBlockChainBlocks(w, *o.chains ? 1 : 0);
+  if (o.islandContacts) dWorldSetBlockIslandContacts(w, *o.islandContacts ? 1 : 0);
   if (o.lightGroups) dWorldSetBlockLightBodyGroups(w, *o.lightGroups ? 1 : 0);
   if (o.loadContacts) dWorldSetBlockLoadRelativeContacts(w, *o.loadContacts ? 1 : 0);
   if (o.impactDepth) dWorldSetBlockImpactDepth(w, *o.impactDepth);
@@ -307,6 +308,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.islandRows = whole(text, key, value, 0, 1000000);
   } else if (key == "chains") {
     o.chains = flag(text, key, value);
+  } else if (key == "island_contacts") {
+    o.islandContacts = flag(text, key, value);
   } else if (key == "light_groups") {
     o.lightGroups = flag(text, key, value);
   } else if (key == "load_contacts") {
@@ -361,6 +364,8 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"mode", "blockstep: block (one block per joint) or row (row by row)"},
           {"island_rows", "blockstep: island blocks up to this many joint rows, 0: off"},
           {"chains", "blockstep: larger islands cut into chains of that many rows, 0 or 1"},
+          {"island_contacts",
+           "blockstep: island blocks' contacts solved in the null space of their joints, 0 or 1"},
           {"contact_rows",
            "blockstep: contact islands as one exact block up to this many points, 0: off"},
           {"light_groups",

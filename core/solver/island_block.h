@@ -68,17 +68,29 @@ class IslandBlocks {
   // cut into chains of at most maxRows rows (positions: each solver body's
   // position, to keep the chains straight; a body beyond its end has
   // none). Island i owns blocks [islandStart[i], islandStart[i+1]).
+  // With withContacts, an island that touches something solves its
+  // contacts' rows in the null space of its equality rows too
+  // (SolverSettings::islandBlockContacts), where that costs no more than
+  // kCoupledContactWork a sweep.
   void select(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
               const std::vector<std::int32_t>& islandStart, int islandCount, int maxRows,
-              bool cutIntoChains = false, const std::vector<Vec3>* positions = nullptr) {
+              bool cutIntoChains = false, const std::vector<Vec3>* positions = nullptr,
+              bool withContacts = false) {
     selectIslands(blocks, staticBody, islandStart, 0, islandCount, maxRows, cutIntoChains,
-                  positions);
+                  positions, withContacts);
   }
   // The same for islands [firstIsland, endIsland) only (the solver steps
   // classes of islands apart); the others get none.
   void selectIslands(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
                      const std::vector<std::int32_t>& islandStart, int firstIsland, int endIsland,
-                     int maxRows, bool cutIntoChains, const std::vector<Vec3>* positions);
+                     int maxRows, bool cutIntoChains, const std::vector<Vec3>* positions,
+                     bool withContacts = false);
+  // The most a sweep's coupled contacts may cost, in multiply-adds (each
+  // row's velocity changes over the island's bodies and its equality
+  // impulses): a ragdoll on the ground takes about 2,000, a hair strand
+  // on the head 1,500; a pile of eight ragdolls in one island, 150,000,
+  // keeps its contacts as Gauss-Seidel partners.
+  static constexpr std::size_t kCoupledContactWork = 30000;
   // K of each chosen group and its LDL^T, once the rows are prepared
   // (Jacobians times M^-1, gamma).
   // Bounded rows with a mass-relative spring get their gamma here.
@@ -108,6 +120,11 @@ class IslandBlocks {
   // Whether island i's joint bounded rows are solved here (solveBounded).
   bool solvesBounded(int island) const {
     return covers(island) && groups_[wholeIsland_[island]].bounded;
+  }
+  // Whether island i's contacts' rows are solved here too (solveBounded):
+  // the solver's sweep then leaves them out.
+  bool solvesContacts(int island) const {
+    return covers(island) && groups_[wholeIsland_[island]].contacts;
   }
 
   // The island's joint bounded rows, each clamped and solved in the null
@@ -173,6 +190,7 @@ class IslandBlocks {
     std::int32_t firstBounded = 0;  // into bounded_
     std::int32_t boundedCount = 0;
     bool bounded = false;        // its joints' bounded rows are solved here
+    bool contacts = false;       // and its island's contacts' rows (solvesContacts)
     std::int32_t firstBody = 0;  // into islandBodies_: the bodies its joints move
     std::int32_t bodyCount = 0;
     // c of its joints' common mass-relative spring (Solver::blockSpringShare):
@@ -196,13 +214,14 @@ class IslandBlocks {
   // call's structure for the next.
   bool sameAsLastSelection(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
                            const std::vector<std::int32_t>& islandStart, int firstIsland,
-                           int endIsland, int maxRows, bool cutIntoChains);
+                           int endIsland, int maxRows, bool cutIntoChains, bool withContacts);
   // The joint blocks of an island that have equality rows, into joints_.
   void collectJoints(int island, const std::vector<ConstraintBlock>& blocks,
                      const std::vector<std::int32_t>& islandStart);
   // A whole island as one group (Cuthill-McKee order).
   void addIsland(int island, int rows, const std::vector<ConstraintBlock>& blocks,
-                 const std::vector<std::int32_t>& islandStart, std::int32_t staticBody);
+                 const std::vector<std::int32_t>& islandStart, std::int32_t staticBody,
+                 bool withContacts);
   // A large island cut into chains, each a group.
   void addChains(int maxRows, const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
                  const std::vector<Vec3>* positions);

@@ -758,17 +758,18 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     }
     heldByJoint_[dummy_] = 0;  // the world: what a pinned cloth hangs from
   }
+  useIslandBlock_ = s.blockMode == BlockMode::Block && s.islandBlockRows > 1;
+  // Islands and their joints stay the same over a step's sub-steps:
+  // choose and order them once. Before the contact groups: an island
+  // block that solves its contacts keeps them from the groups.
+  if (useIslandBlock_ && !islandBlocksSelected_) {
+    islandBlocks().selectIslands(blocks_, dummy_, islandStart_, islandBegin_, islandEnd_,
+                                 s.islandBlockRows, s.chainBlocks, &startX_, s.islandBlockContacts);
+    islandBlocksSelected_ = true;
+  }
   // Before the rows' error is kept for carried sub-steps (rest depth).
   selectContactIslands(in, s, h);
-  useIslandBlock_ = s.blockMode == BlockMode::Block && s.islandBlockRows > 1;
   if (useIslandBlock_) {
-    // Islands and their joints stay the same over a step's sub-steps:
-    // choose and order them once.
-    if (!islandBlocksSelected_) {
-      islandBlocks().selectIslands(blocks_, dummy_, islandStart_, islandBegin_, islandEnd_,
-                                   s.islandBlockRows, s.chainBlocks, &startX_);
-      islandBlocksSelected_ = true;
-    }
     if (s.rigidJointSoftness) {
       // An island block solves its rows exactly, so they need no softness
       // to converge: the rigid-row spring becomes a rigid row (CFM 0) that
@@ -873,6 +874,8 @@ void Solver::selectContactIslands(const StepInput& in, const SolverSettings& s, 
 // Newton's cradle would pass its impulse down the row as one shove) and
 // is not a physical spring (its softness is real, group rows are rigid).
 bool Solver::groupableContact(const StepInput& in, const ConstraintBlock& blk) const {
+  if (useIslandBlock_ && islandBlocks().solvesContacts(islandOfBlock_[&blk - blocks_.data()]))
+    return false;  // its island block solves it
   const ContactSurface& surface = in.contacts[blk.contact].surface;
   return surface.restitution <= 0.0 && surface.softness.mode != Softness::Mode::Stiffness;
 }
@@ -1478,6 +1481,7 @@ void Solver::warmStart() {
 void Solver::sweep(int island, bool useBias, BlockMode mode) {
   const bool islandBounded = useIslandBlock_ && islandBlocks().solvesBounded(island);
   const bool contactIsland = contactIslandRows_ > 0 && contactIslands_.covers(island);
+  const bool contactsInBlock = islandBounded && islandBlocks().solvesContacts(island);
   for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
     ConstraintBlock& blk = blocks_[bi];
     SolverBody& a = bodies_[blk.bodyA];
@@ -1485,6 +1489,7 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     ConstraintRow* rows = &rows_[blk.firstRow];
     const int ne = blk.equality;
     if (blk.unilateral) {
+      if (contactsInBlock) continue;  // with the island's bounded rows below
       if (contactIsland && contactIslands_.groups(bi)) {
         for (int pass = 0; pass < islandFrictionPasses_; ++pass)
           solveFriction(blk, useBias, a, b);

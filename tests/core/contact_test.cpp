@@ -392,6 +392,64 @@ TEST(Contact, ALightBodyInALargerIslandPassesItsLoadOnAtOnce) {
   }
 }
 
+// A 0.1 kg ball on the ground carrying two 5 kg balls above it on ball
+// joints, all falling at 2 m/s, stepped once by one sweep with the
+// joints' rows as one island block. With the island's contacts in the
+// null space of its joints (islandBlockContacts), the ground's one point
+// stops all 10.1 kg in that sweep: its impulse is the column's momentum
+// with the step's gravity, 10.1 kg (2 + g h) m/s, and no body moves on
+// down but for what the rows' CFM of 1e-5 gives (CFM / h times the
+// impulse: about 0.013 m/s at the contact, as much again at the joints).
+// As a Gauss-Seidel partner of the joints, the point stops the light
+// ball alone and the joints then pull it down with the others.
+TEST(Contact, AContactOnAJointedBodyStopsWhatItsJointsCarry) {
+  struct Column {
+    double impulse = 0.0;  // the ground's normal impulse, N s
+    double slowest = 0.0;  // the most downward speed after the step, m/s (< 0: down)
+  };
+  auto drop = [](bool inNullSpace) {
+    World world;
+    SolverSettings s = SolverSettings::paper(1);
+    s.islandBlockRows = SolverSettings::kIslandBlockRows;
+    s.islandBlockContacts = inNullSpace;
+    world.setSettings(s);
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    const double r = 0.05;
+    const double masses[3] = {0.1, 5.0, 5.0};
+    BodyId bodies[3];
+    for (int i = 0; i < 3; ++i) {
+      BodyDesc d = test::sphereBody(Vec3(0, 0, r + 0.2 * i), masses[i], r);
+      d.linearVelocity = Vec3(0, 0, -2.0);
+      bodies[i] = world.createBody(d);
+      world.addShape(Shape::sphere(bodies[i], r));
+    }
+    for (int i = 0; i < 2; ++i) {
+      BallJointDesc ball;
+      ball.common.bodyA = bodies[i];
+      ball.common.bodyB = bodies[i + 1];
+      ball.anchor = Vec3(0, 0, r + 0.2 * i + 0.1);
+      world.createJoint(ball);
+    }
+    world.step(1.0 / 60.0);
+    Column c;
+    for (const ContactManifold& m : world.contacts())
+      for (int p = 0; p < m.pointCount; ++p)
+        c.impulse += m.points[p].stepNormalImpulse;
+    for (BodyId b : bodies)
+      c.slowest = std::min(c.slowest, world.body(b).linearVelocity.z());
+    return c;
+  };
+  const Column coupled = drop(true), partners = drop(false);
+  const double momentum = 10.1 * (2.0 + 9.81 / 60.0);
+  std::printf(
+      "0.1 kg under 10 kg, one sweep: in the joints' null space the ground takes %.3f N s "
+      "(the column's momentum %.3f), fastest down %.3f m/s; as a partner %.3f N s, %.3f m/s\n",
+      coupled.impulse, momentum, coupled.slowest, partners.impulse, partners.slowest);
+  EXPECT_NEAR(coupled.impulse, momentum, 0.015 * momentum);
+  EXPECT_GT(coupled.slowest, -0.03);
+  EXPECT_LT(partners.slowest, -1.0) << "what the setting is for";
+}
+
 TEST(Contact, WarmStartingCutsTheSweepsAStackNeeds) {
   auto sweeps = [](bool warm) {
     World world;

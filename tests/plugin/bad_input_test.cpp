@@ -211,6 +211,9 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   EXPECT_EQ(dWorldGetBlockProjections(p.s.world), projections);
   dWorldSetBlockProjections(p.s.world, 2);
   EXPECT_EQ(dWorldGetBlockProjections(p.s.world), 2);
+  EXPECT_EQ(dWorldGetBlockIslandContacts(p.s.world), 0);  // off in every preset
+  dWorldSetBlockIslandContacts(p.s.world, 1);
+  EXPECT_EQ(dWorldGetBlockIslandContacts(p.s.world), 1);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 1);  // the sub-stepped preset's
   dWorldSetBlockRetakeTurns(p.s.world, 0);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 0);

@@ -138,6 +138,15 @@ ODE_API int dWorldGetBlockRetakeTurns(dWorldID w);
  * default). Holds under every solver. BLOCKSTEP_CHAIN_BLOCKS. */
 ODE_API void dWorldSetBlockChainBlocks(dWorldID w, int on);
 ODE_API int dWorldGetBlockChainBlocks(dWorldID w);
+/* An island whose joints' rows are one exact block and that touches
+ * something solves its contacts (friction and normals) in the null space
+ * of those rows, with its limits and motors (1): a contact then stops
+ * what the joints carry with its body, not only the body. Or its
+ * contacts stay Gauss-Seidel partners of the joints (0, the default).
+ * Islands where that would cost too much a sweep keep the latter.
+ * Holds under every solver. BLOCKSTEP_ISLAND_CONTACTS. */
+ODE_API void dWorldSetBlockIslandContacts(dWorldID w, int on);
+ODE_API int dWorldGetBlockIslandContacts(dWorldID w);
 /* More sub-steps while a jointed body turns fast: a step runs as many as
  * keep the fastest turn of a constrained body (over the last step) within
  * this angle per sub-step, up to 4 times the set count. Joints are
