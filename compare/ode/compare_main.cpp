@@ -7,6 +7,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -197,17 +199,69 @@ RunResult resultFromJson(const nlohmann::json& j) {
   return r;
 }
 
+// Least, median and most of one measure over a job's runs (--seeds).
+std::array<double, 3> spreadOf(const std::vector<RunResult>& runs, double RunResult::*measure) {
+  std::vector<double> v;
+  for (const RunResult& r : runs)
+    v.push_back(r.*measure);
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  const double median = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  return {v.front(), median, v.back()};
+}
+
+// The measures whose one run is one draw of a chaotic outcome.
+constexpr std::pair<const char*, double RunResult::*> kSpreadMeasures[] = {
+    {"max_separation_m", &RunResult::maxSeparation},
+    {"max_penetration_m", &RunResult::maxPenetration},
+    {"max_held_penetration_m", &RunResult::maxHeldPenetration},
+    {"last_second_penetration_m", &RunResult::lastSecondPenetration},
+    {"max_energy_rise_j", &RunResult::maxEnergyRise},
+};
+
+nlohmann::json spreadJson(const std::vector<RunResult>& runs) {
+  nlohmann::json j;
+  for (const auto& [name, measure] : kSpreadMeasures) {
+    const auto s = spreadOf(runs, measure);
+    j[name] = {s[0], s[1], s[2]};
+  }
+  return j;
+}
+
+// A row of the spread table: lengths in mm, the energy in J.
+std::string spreadLine(const std::vector<RunResult>& runs, int labelWidth) {
+  char buffer[512];
+  std::string line;
+  std::snprintf(buffer, sizeof buffer, "%-12s %-*s", runs.front().scene.c_str(), labelWidth,
+                runs.front().stepper.c_str());
+  line = buffer;
+  for (const auto& [name, measure] : kSpreadMeasures) {
+    const double unit = measure == &RunResult::maxEnergyRise ? 1.0 : 1e3;
+    const auto s = spreadOf(runs, measure);
+    std::snprintf(buffer, sizeof buffer, "%.4g [%.4g, %.4g]", unit * s[1], unit * s[0],
+                  unit * s[2]);
+    char cell[64];
+    std::snprintf(cell, sizeof cell, " %26s", buffer);
+    line += cell;
+  }
+  return line;
+}
+
 // One run of the comparison: a scene and a stepper.
 struct Job {
   std::string scene;
   Stepper stepper;
+  int seed = 0;  // RunOptions::perturbSeed
 };
 
-// One run on a freshly built scene, its CSV written when asked for.
-RunResult runOne(const Job& job, int size, const RunOptions& options, const std::string& out) {
+// One run on a freshly built scene, its CSV written when asked for (the
+// scene as built only: perturbed runs add to the spread of the figures).
+RunResult runOne(const Job& job, int size, const RunOptions& given, const std::string& out) {
   auto scene = buildScene(job.scene, size);
+  RunOptions options = given;
+  options.perturbSeed = job.seed;
   RunResult r = run(*scene, job.stepper, options);
-  if (!out.empty()) {
+  if (!out.empty() && job.seed == 0) {
     writeCsv(runPath(out, r.scene, r.stepper, "", ".csv"), r);
     if (!r.poses.empty()) writePoses(runPath(out, r.scene, r.stepper, "poses_", ".bin"), r);
   }
@@ -465,6 +519,12 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->expected(1, 2)
       ->check(CLI::Range(0, 1000000));
+  int seeds = 1;
+  app.add_option("--seeds", seeds,
+                 "runs of each scene and stepper: the scene as built, then N-1 with every body's "
+                 "start moved by 1e-6 m/s (seeds 1..N-1), for the spread (least, median, most) of "
+                 "chaotic figures such as the deepest contact; the table's rows stay the first's")
+      ->check(CLI::Range(1, 1000));
   bool grid = false;
   app.add_flag("--grid", grid,
                "error versus cost: quickstep 10/20/50 iterations x 1/2/4/10 sub-steps and "
@@ -592,9 +652,10 @@ int main(int argc, char** argv) {
     }
   }
   std::vector<Job> jobList;
-  for (const std::string& name : scenes)
-    for (const Stepper& s : parsed)
-      jobList.push_back({name, s});
+  for (int seed = 0; seed < seeds; ++seed)
+    for (const std::string& name : scenes)
+      for (const Stepper& s : parsed)
+        jobList.push_back({name, s, seed});
   std::vector<RunResult> results;
   if (jobs > 1) {
     results = runInProcesses(jobList, jobs, size, options, out);
@@ -606,7 +667,11 @@ int main(int argc, char** argv) {
       if (terminal && lastShown > 0.0) std::fprintf(stderr, "\r%*s\r", 70, "");
     }
   }
-  for (std::size_t first = 0; first < results.size(); first += parsed.size()) {
+  // The scene as built first (the table), then each seed's runs in the
+  // same order.
+  const std::size_t perSeed = scenes.size() * parsed.size();
+  std::vector<std::string> spreadLines;
+  for (std::size_t first = 0; first < perSeed; first += parsed.size()) {
     const std::vector<RunResult> sceneResults(results.begin() + first,
                                               results.begin() + first + parsed.size());
     // Read against quickstep 20 when it was asked for (as it is, when
@@ -640,6 +705,14 @@ int main(int argc, char** argv) {
       j["substeps"] = st.substeps;
       j["error_m"] = sceneError(r, measure);
       j["error_is"] = describe(measure);
+      if (seeds > 1) {
+        std::vector<RunResult> over;
+        for (int seed = 0; seed < seeds; ++seed)
+          over.push_back(results[seed * perSeed + first + k]);
+        j["seeds"] = seeds;
+        j["spread"] = spreadJson(over);
+        spreadLines.push_back(spreadLine(over, labelWidth));
+      }
       if (!out.empty() && replayStride > 0 && r.framesRun > 0) {
         j["replay_stride"] = replayStride;
         j["replay_file"] = runPath("", r.scene, r.stepper, "poses_", ".bin").string();
@@ -648,6 +721,16 @@ int main(int argc, char** argv) {
       all.push_back(j);
     }
     reportBeaten(sceneResults, parsed, measure);
+  }
+  if (seeds > 1) {
+    std::printf(
+        "\nover %d runs (the scene as built, then %d with every body's start moved by %.0e m/s): "
+        "median [least, most]\n",
+        seeds, seeds - 1, kPerturbSpeed);
+    std::printf("%-12s %-*s %26s %26s %26s %26s %26s\n", "scene", labelWidth, "stepper",
+                "max sep mm", "pen mm", "held mm", "last s pen mm", "E rise J");
+    for (const std::string& line : spreadLines)
+      std::printf("%s\n", line.c_str());
   }
   if (jobs > 1)
     std::printf("(%d runs at a time: their solve times shared the machine's cores)\n", jobs);

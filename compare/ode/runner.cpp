@@ -5,7 +5,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdarg>
+#include <cstdint>
 #include <cstdio>
+#include <random>
 #include <stdexcept>
 
 #include "blockstep/blockstep_ode.h"
@@ -547,8 +549,23 @@ void traceStageEnergy(dWorldID w, const Scene& scene, const Stepper& stepper, in
 
 }  // namespace
 
+void perturbStart(Scene& scene, int seed) {
+  std::mt19937 rng(static_cast<std::uint32_t>(seed));
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (dBodyID b : scene.bodies()) {
+    if (dBodyIsKinematic(b)) continue;  // its motion is the scene's, not a state
+    double d[3] = {gauss(rng), gauss(rng), gauss(rng)};
+    const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(n > 0.0)) continue;
+    const dReal* v = dBodyGetLinearVel(b);
+    dBodySetLinearVel(b, v[0] + kPerturbSpeed * d[0] / n, v[1] + kPerturbSpeed * d[1] / n,
+                      v[2] + kPerturbSpeed * d[2] / n);
+  }
+}
+
 RunResult run(Scene& scene, const Stepper& stepper, const RunOptions& given) {
   RunOptions options = given;
+  if (options.perturbSeed > 0) perturbStart(scene, options.perturbSeed);
   if (stepper.overrides.dt) options.dt = *stepper.overrides.dt;
   if (!(options.dt > 0.0) || options.dt > 1.0 || options.frames < 1)
     throw std::invalid_argument("a run needs frames >= 1 and 0 < dt <= 1 s");

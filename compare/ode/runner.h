@@ -191,7 +191,21 @@ struct RunOptions {
   // stderr (from < 0: none): which stage of a step gains energy.
   int traceEnergyFrom = -1;
   int traceEnergyTo = -1;
+  // 0: the scene as built. s > 0: before the first frame, every body's
+  // velocity is moved by kPerturbSpeed in a direction drawn from seed s
+  // (perturbStart): runs of a scene whose outcome is chaotic (a ragdoll's
+  // landings, a pile) then show the spread of what a stepper gives, not
+  // one draw of it.
+  int perturbSeed = 0;
 };
+
+// The speed each body's start is moved by under RunOptions::perturbSeed,
+// m/s: far below what any measure reads in one frame, and enough for a
+// chaotic scene to go its own way within a second.
+constexpr double kPerturbSpeed = 1e-4;
+// Moves every body's linear velocity by kPerturbSpeed in a direction
+// drawn from seed (> 0; the same seed, the same moves).
+void perturbStart(Scene& scene, int seed);
 
 // Appends the scene's body poses to r.poses when frame `done` (frames
 // stepped so far) is one to record.
