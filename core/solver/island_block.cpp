@@ -92,15 +92,19 @@ void IslandBlocks::collectJoints(int island, const std::vector<ConstraintBlock>&
 
 // The island's joints' bounded rows, each in the null space of its
 // equality rows, when nothing touches it; with withContacts, also when
-// something does: then its contacts' rows join them (friction, then each
-// manifold's normals), so every row the island's equality rows meet is
-// solved in their null space. Contacts left outside as Gauss-Seidel
-// partners see only their own bodies' mass: a thrown ragdoll's thigh
-// landing at 3.4 m/s stopped its own 7 kg while the joints pulled the
-// other 37 kg down after it, and one sweep left it still sinking at
-// 1.6 m/s, 66 mm deep (quickstep's 20 iterations: 30 mm). Where limits
-// were in the null space and contacts were not, a ragdoll lying on the
-// ground settled 4-7 times deeper. An island where the coupled rows
+// something does: then its contacts' normal rows join them, so every row
+// that holds the island up is solved in the null space of its joints.
+// Contacts left outside as Gauss-Seidel partners see only their own
+// bodies' mass: a thrown ragdoll's thigh landing at 3.4 m/s stopped its
+// own 7 kg while the joints pulled the other 37 kg down after it, and one
+// sweep left it still sinking at 1.6 m/s, 66 mm deep (quickstep's 20
+// iterations: 30 mm). Where limits were in the null space and contacts
+// were not, a ragdoll lying on the ground settled 4-7 times deeper.
+// Friction stays each manifold's, Gauss-Seidel before the island's
+// solve: in the null space too it tripled the rows' cost (hair at 10
+// sub-steps 13.6 against 9.8 ms a frame, 9.2 without the setting) and
+// the thrown ragdoll tumbled onto its head harder (deepest contact over
+// four perturbed starts, median 73 mm against 38). An island where the coupled rows
 // would cost more than kCoupledContactWork a sweep keeps its contacts'
 // manifold blocks.
 void IslandBlocks::addIsland(int island, int rows, const std::vector<ConstraintBlock>& blocks,
@@ -116,7 +120,7 @@ void IslandBlocks::addIsland(int island, int rows, const std::vector<ConstraintB
   for (std::int32_t bi = begin; bi < end; ++bi) {
     const ConstraintBlock& blk = blocks[bi];
     touches = touches || blk.unilateral;
-    boundedRows += blk.unilateral ? blk.rowCount() : blk.bounded;
+    boundedRows += blk.unilateral ? blk.equality : blk.bounded;
   }
   g.firstBody = static_cast<std::int32_t>(islandBodies_.size());
   for (std::int32_t bi = begin; bi < end; ++bi) {
@@ -153,8 +157,6 @@ void IslandBlocks::addIsland(int island, int rows, const std::vector<ConstraintB
   for (std::int32_t bi = begin; bi < end; ++bi) {
     const ConstraintBlock& blk = blocks[bi];
     if (!blk.unilateral) continue;
-    for (int r = blk.firstRow + blk.equality; r < blk.firstRow + blk.rowCount(); ++r)
-      addBounded(r, bi);
     for (int r = blk.firstRow; r < blk.firstRow + blk.equality; ++r)
       addBounded(r, bi);
   }
@@ -598,10 +600,7 @@ void IslandBlocks::coupleBounded(const Group& isl, const std::vector<ConstraintB
 
 // Each row moves the island's bodies by its precomputed velocity changes;
 // the equality rows' share, w times the row's impulse, is added once at
-// the end (only the island solve reads their impulses). A friction row's
-// bounds follow its manifold's normal impulses as they stand (section
-// 4.2), as Solver::solveFriction's do; a cone pair is projected onto its
-// disk together.
+// the end (only the island solve reads their impulses).
 void IslandBlocks::solveBounded(int island, bool useBias,
                                 const std::vector<ConstraintBlock>& blocks,
                                 std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies) {
@@ -609,56 +608,23 @@ void IslandBlocks::solveBounded(int island, bool useBias,
   const std::int32_t n = isl.size;
   const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
   const std::int32_t* islandBody = &islandBodies_[isl.firstBody];
-  auto apply = [&](std::int32_t k, double dP) {
-    boundedStep_[k] = dP;
-    const Vec3* delta = &deltas_[bounded_[k].deltas];
-    for (std::int32_t b = 0; b < isl.bodyCount; ++b)
-      addVelocity(bodies[islandBody[b]], dP * delta[2 * b], dP * delta[2 * b + 1]);
-  };
-  const std::int32_t endBounded = isl.firstBounded + isl.boundedCount;
-  for (std::int32_t k = isl.firstBounded; k < endBounded; ++k) {
+  for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
     const BoundedRow& br = bounded_[k];
     ConstraintRow& row = rows[br.row];
     boundedStep_[k] = 0.0;
     if (relaxSkips(row, useBias)) continue;
     const ConstraintBlock& blk = blocks[br.block];
-    if (row.frictionOf != ConstraintRow::kNoFriction) {
-      const ConstraintRow* normals = &rows[blk.firstRow];
-      double load = 0.0;
-      if (row.frictionOf == ConstraintRow::kAllNormals) {
-        for (int i = 0; i < blk.equality; ++i)
-          load += normals[i].impulse;
-      } else {
-        load = normals[row.frictionOf].impulse;
-      }
-      row.hi = row.mu * load;
-      row.lo = -row.hi;
-    }
     const double residual = rowResidual(row, useBias, bodies[blk.bodyA], bodies[blk.bodyB]);
-    if (row.conePair && k + 1 < endBounded) {
-      const BoundedRow& nextRow = bounded_[k + 1];
-      ConstraintRow& other = rows[nextRow.row];
-      const double t0 = row.impulse - residual * br.effMass;
-      const double t1 =
-          other.impulse -
-          rowResidual(other, useBias, bodies[blk.bodyA], bodies[blk.bodyB]) * nextRow.effMass;
-      const double len = std::hypot(t0, t1);
-      const double scale = len > row.hi ? row.hi / len : 1.0;
-      const double d0 = t0 * scale - row.impulse, d1 = t1 * scale - other.impulse;
-      row.impulse += d0;
-      other.impulse += d1;
-      apply(k, d0);
-      apply(k + 1, d1);
-      ++k;
-      continue;
-    }
     const double next = std::clamp(row.impulse - residual * br.effMass, row.lo, row.hi);
     const double dP = next - row.impulse;
     if (dP == 0.0) continue;
     row.impulse = next;
-    apply(k, dP);
+    boundedStep_[k] = dP;
+    const Vec3* delta = &deltas_[br.deltas];
+    for (std::int32_t b = 0; b < isl.bodyCount; ++b)
+      addVelocity(bodies[islandBody[b]], dP * delta[2 * b], dP * delta[2 * b + 1]);
   }
-  for (std::int32_t k = isl.firstBounded; k < endBounded; ++k) {
+  for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
     const double dP = boundedStep_[k];
     if (dP == 0.0) continue;
     const double* w = &weights_[bounded_[k].weights];

@@ -69,7 +69,7 @@ class IslandBlocks {
   // position, to keep the chains straight; a body beyond its end has
   // none). Island i owns blocks [islandStart[i], islandStart[i+1]).
   // With withContacts, an island that touches something solves its
-  // contacts' rows in the null space of its equality rows too
+  // contacts' normal rows in the null space of its equality rows too
   // (SolverSettings::islandBlockContacts), where that costs no more than
   // kCoupledContactWork a sweep.
   void select(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
@@ -87,8 +87,8 @@ class IslandBlocks {
                      bool withContacts = false);
   // The most a sweep's coupled contacts may cost, in multiply-adds (each
   // row's velocity changes over the island's bodies and its equality
-  // impulses): a ragdoll on the ground takes about 2,000, a hair strand
-  // on the head 1,500; a pile of eight ragdolls in one island, 150,000,
+  // impulses): a ragdoll on the ground takes about 700, a hair strand on
+  // the head 500; a pile of eight ragdolls in one island, about 50,000,
   // keeps its contacts as Gauss-Seidel partners.
   static constexpr std::size_t kCoupledContactWork = 30000;
   // K of each chosen group and its LDL^T, once the rows are prepared
@@ -121,8 +121,8 @@ class IslandBlocks {
   bool solvesBounded(int island) const {
     return covers(island) && groups_[wholeIsland_[island]].bounded;
   }
-  // Whether island i's contacts' rows are solved here too (solveBounded):
-  // the solver's sweep then leaves them out.
+  // Whether island i's contact normals are solved here too (solveBounded):
+  // the solver's sweep then solves only its contacts' friction.
   bool solvesContacts(int island) const {
     return covers(island) && groups_[wholeIsland_[island]].contacts;
   }
@@ -190,7 +190,7 @@ class IslandBlocks {
     std::int32_t firstBounded = 0;  // into bounded_
     std::int32_t boundedCount = 0;
     bool bounded = false;        // its joints' bounded rows are solved here
-    bool contacts = false;       // and its island's contacts' rows (solvesContacts)
+    bool contacts = false;       // and its island's contact normals (solvesContacts)
     std::int32_t firstBody = 0;  // into islandBodies_: the bodies its joints move
     std::int32_t bodyCount = 0;
     // c of its joints' common mass-relative spring (Solver::blockSpringShare):

@@ -1489,7 +1489,10 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     ConstraintRow* rows = &rows_[blk.firstRow];
     const int ne = blk.equality;
     if (blk.unilateral) {
-      if (contactsInBlock) continue;  // with the island's bounded rows below
+      if (contactsInBlock) {  // its normals with the island's bounded rows below
+        solveFriction(blk, useBias, a, b);
+        continue;
+      }
       if (contactIsland && contactIslands_.groups(bi)) {
         for (int pass = 0; pass < islandFrictionPasses_; ++pass)
           solveFriction(blk, useBias, a, b);
