@@ -22,9 +22,11 @@ constexpr double kStep = 1.0 / 60.0;
 
 // A 0.2 m box resting on the ground at z = 0, held by four contacts at its
 // corners made afresh each step (into the group the caller empties).
-void addGroundContacts(dWorldID world, dJointGroupID group, dBodyID box, double mu) {
+// Four contacts of a 0.2 m box with a floor at `floor` (m) under it.
+void addGroundContacts(dWorldID world, dJointGroupID group, dBodyID box, double mu,
+                       double floor = 0.0) {
   const dReal* p = dBodyGetPosition(box);
-  const double depth = 0.1 - p[2];
+  const double depth = floor + 0.1 - p[2];
   if (depth < -1e-3) return;
   for (int k = 0; k < 4; ++k) {
     dContact c{};
@@ -180,7 +182,7 @@ TEST(PluginThreads, MovedCallbackSteppingAnotherWorldKeepsEveryCallback) {
 // thread count must give the same bits as one thread.
 struct ManyIslands {
   OdeScene s;
-  std::vector<dBodyID> boxes;
+  std::vector<dBodyID> boxes, tips;
   dJointGroupID contacts = dJointGroupCreate(0);
 
   explicit ManyIslands(int threads) {
@@ -194,6 +196,7 @@ struct ManyIslands {
         dJointSetHingeAxis(h, 0.0, 1.0, 0.0);
         parent = link;
       }
+      if (c % 2 == 1) tips.push_back(parent);
     }
     for (int k = 0; k < 20; ++k) {
       boxes.push_back(s.box(-3.0, 2.0 * k, 0.1 + 0.01 * k, 1.0, 0.2));
@@ -201,6 +204,9 @@ struct ManyIslands {
     }
     dWorldSetBlockSubsteps(s.world, 4);
     dWorldSetBlockProjections(s.world, 1);  // each chain's last pose projected on its thread
+    // Every other chain swings onto a floor 0.5 m below its pin: its
+    // tip's normals are solved in the chain's null space on its thread.
+    dWorldSetBlockIslandContacts(s.world, 1);
     dWorldSetBlockThreads(s.world, threads);
   }
   ~ManyIslands() { dJointGroupDestroy(contacts); }
@@ -209,6 +215,8 @@ struct ManyIslands {
     dJointGroupEmpty(contacts);
     for (dBodyID box : boxes)
       addGroundContacts(s.world, contacts, box, 0.5);
+    for (dBodyID tip : tips)
+      addGroundContacts(s.world, contacts, tip, 0.5, 2.5);
     ASSERT_EQ(dWorldBlockStep(s.world, kStep), 1) << dWorldGetBlockStepMessage(s.world);
   }
 
