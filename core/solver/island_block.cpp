@@ -27,6 +27,7 @@ void IslandBlocks::selectIslands(const std::vector<ConstraintBlock>& blocks,
   wholeIsland_.assign(endIsland, -1);
   islandGroups_.assign(endIsland + 1, 0);
   groupOfBlock_.assign(blocks.size(), -1);
+  coupledContact_.assign(blocks.size(), 0);
   groups_.clear();
   entryRow_.clear();
   entryBlock_.clear();
@@ -38,6 +39,7 @@ void IslandBlocks::selectIslands(const std::vector<ConstraintBlock>& blocks,
   if (maxRows < 2) return;
   const auto bodySlots = static_cast<std::size_t>(staticBody) + 1;
   if (bodyLocal_.size() < bodySlots) bodyLocal_.resize(bodySlots);
+  if (heldMark_.size() < bodySlots) heldMark_.resize(bodySlots, -1);
   if (bodyFirst_.size() < bodySlots) bodyFirst_.resize(bodySlots);
   for (int island = firstIsland; island < endIsland; ++island) {
     islandGroups_[island] = static_cast<std::int32_t>(groups_.size());
@@ -92,21 +94,28 @@ void IslandBlocks::collectJoints(int island, const std::vector<ConstraintBlock>&
 
 // The island's joints' bounded rows, each in the null space of its
 // equality rows, when nothing touches it; with withContacts, also when
-// something does: then its contacts' normal rows join them, so every row
-// that holds the island up is solved in the null space of its joints.
-// Contacts left outside as Gauss-Seidel partners see only their own
-// bodies' mass: a thrown ragdoll's thigh landing at 3.4 m/s stopped its
-// own 7 kg while the joints pulled the other 37 kg down after it, and one
-// sweep left it still sinking at 1.6 m/s, 66 mm deep (quickstep's 20
-// iterations: 30 mm). Where limits were in the null space and contacts
-// were not, a ragdoll lying on the ground settled 4-7 times deeper.
-// Friction stays each manifold's, Gauss-Seidel before the island's
-// solve: in the null space too it tripled the rows' cost (hair at 10
-// sub-steps 13.6 against 9.8 ms a frame, 9.2 without the setting) and
-// the thrown ragdoll tumbled onto its head harder (deepest contact over
-// four perturbed starts, median 73 mm against 38). An island where the coupled rows
-// would cost more than kCoupledContactWork a sweep keeps its contacts'
-// manifold blocks.
+// something does: then the normal rows of its contacts on jointed bodies
+// join them, so every row that holds the joints' bodies up is solved in
+// the null space of the joints. Contacts left outside as Gauss-Seidel
+// partners see only their own bodies' mass: a thrown ragdoll's thigh
+// landing at 3.4 m/s stopped its own 7 kg while the joints pulled the
+// other 37 kg down after it, and one sweep left it still sinking at
+// 1.6 m/s, 66 mm deep (quickstep's 20 iterations: 30 mm). Where limits
+// were in the null space and contacts were not, a ragdoll lying on the
+// ground settled 4-7 times deeper. Friction stays each manifold's,
+// Gauss-Seidel before the island's solve: in the null space too it
+// tripled the rows' cost (hair at 10 sub-steps 13.6 against 9.8 ms a
+// frame, 9.2 without the setting) and the thrown ragdoll tumbled onto its
+// head harder (deepest contact over four perturbed starts, median 73 mm
+// against 38). Only contacts on a jointed body are coupled, and they stay
+// in their manifold blocks' light-body groups too (Gauss-Seidel over
+// blocks that overlap): a free body's contacts otherwise lose what keeps
+// it from being pressed into others. A loose 2 kg box pushed by the
+// 150 kg car went 43 mm into the next box with its manifolds row by row
+// in the car's null space, and 86 mm into the ground with its group
+// short of its contact with the car. An island where the coupled rows
+// would cost more than kCoupledContactWork a sweep keeps all its
+// contacts' manifold blocks.
 void IslandBlocks::addIsland(int island, int rows, const std::vector<ConstraintBlock>& blocks,
                              const std::vector<std::int32_t>& islandStart, std::int32_t staticBody,
                              bool withContacts) {
@@ -115,16 +124,26 @@ void IslandBlocks::addIsland(int island, int rows, const std::vector<ConstraintB
   Group& g = addGroup(blocks, staticBody);
   g.firstBounded = static_cast<std::int32_t>(bounded_.size());
   const std::int32_t begin = islandStart[island], end = islandStart[island + 1];
-  bool touches = false;
-  std::size_t boundedRows = 0;
+  // The bodies a joint holds.
   for (std::int32_t bi = begin; bi < end; ++bi) {
     const ConstraintBlock& blk = blocks[bi];
-    touches = touches || blk.unilateral;
-    boundedRows += blk.unilateral ? blk.equality : blk.bounded;
+    if (blk.unilateral) continue;
+    for (std::int32_t body : {blk.bodyA, blk.bodyB})
+      if (body != staticBody) heldMark_[body] = island;
   }
+  auto held = [&](std::int32_t body) { return body != staticBody && heldMark_[body] == island; };
+  auto coupled = [&](const ConstraintBlock& blk) {
+    return blk.unilateral && withContacts && (held(blk.bodyA) || held(blk.bodyB));
+  };
+  bool touches = false;
+  std::size_t boundedRows = 0;
   g.firstBody = static_cast<std::int32_t>(islandBodies_.size());
   for (std::int32_t bi = begin; bi < end; ++bi) {
     const ConstraintBlock& blk = blocks[bi];
+    touches = touches || blk.unilateral;
+    if (blk.unilateral && !coupled(blk)) continue;
+    if (blk.unilateral) coupledContact_[bi] = 1;
+    boundedRows += blk.unilateral ? blk.equality : blk.bounded;
     for (std::int32_t body : {blk.bodyA, blk.bodyB}) {
       if (body == staticBody || bodyMark_[body] == island) continue;
       bodyMark_[body] = island;
@@ -133,11 +152,11 @@ void IslandBlocks::addIsland(int island, int rows, const std::vector<ConstraintB
   }
   g.bodyCount = static_cast<std::int32_t>(islandBodies_.size()) - g.firstBody;
   for (std::int32_t k = g.firstBody; k < g.firstBody + g.bodyCount; ++k)
-    bodyMark_[islandBodies_[k]] = -1;
+    bodyMark_[islandBodies_[k]] = heldMark_[islandBodies_[k]] = -1;
   const std::size_t work = boundedRows * (6 * static_cast<std::size_t>(g.bodyCount) + rows);
   g.bounded = !touches || (withContacts && work <= kCoupledContactWork);
-  g.contacts = g.bounded && touches;
   if (!g.bounded) {
+    std::fill(coupledContact_.begin() + begin, coupledContact_.begin() + end, 0);
     islandBodies_.resize(g.firstBody);
     g.bodyCount = 0;
     g.boundedCount = 0;
@@ -156,7 +175,8 @@ void IslandBlocks::addIsland(int island, int rows, const std::vector<ConstraintB
   }
   for (std::int32_t bi = begin; bi < end; ++bi) {
     const ConstraintBlock& blk = blocks[bi];
-    if (!blk.unilateral) continue;
+    if (!coupledContact_[bi]) continue;
+    g.contacts = true;
     for (int r = blk.firstRow; r < blk.firstRow + blk.equality; ++r)
       addBounded(r, bi);
   }

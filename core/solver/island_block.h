@@ -121,10 +121,14 @@ class IslandBlocks {
   bool solvesBounded(int island) const {
     return covers(island) && groups_[wholeIsland_[island]].bounded;
   }
-  // Whether island i's contact normals are solved here too (solveBounded):
-  // the solver's sweep then solves only its contacts' friction.
+  // Whether some of island i's contact normals are solved here too
+  // (solveBounded), and whether contact block b's are: the solver's sweep
+  // then solves only its friction.
   bool solvesContacts(int island) const {
     return covers(island) && groups_[wholeIsland_[island]].contacts;
+  }
+  bool solvesContactNormals(std::int32_t block) const {
+    return block < static_cast<std::int32_t>(coupledContact_.size()) && coupledContact_[block];
   }
 
   // The island's joint bounded rows, each clamped and solved in the null
@@ -190,7 +194,7 @@ class IslandBlocks {
     std::int32_t firstBounded = 0;  // into bounded_
     std::int32_t boundedCount = 0;
     bool bounded = false;        // its joints' bounded rows are solved here
-    bool contacts = false;       // and its island's contact normals (solvesContacts)
+    bool contacts = false;       // and those of its contacts on jointed bodies (solvesContacts)
     std::int32_t firstBody = 0;  // into islandBodies_: the bodies its joints move
     std::int32_t bodyCount = 0;
     // c of its joints' common mass-relative spring (Solver::blockSpringShare):
@@ -253,9 +257,11 @@ class IslandBlocks {
   void coupleBounded(const Group& g, const std::vector<ConstraintBlock>& blocks,
                      std::vector<ConstraintRow>& rows, const std::vector<SolverBody>& bodies);
 
-  std::vector<std::int32_t> wholeIsland_;   // island -> its whole-island group, or -1
-  std::vector<std::int32_t> islandGroups_;  // island i's groups from islandGroups_[i]
-  std::vector<std::int32_t> groupOfBlock_;  // block -> the group solving its equality rows, or -1
+  std::vector<std::int32_t> wholeIsland_;     // island -> its whole-island group, or -1
+  std::vector<std::int32_t> islandGroups_;    // island i's groups from islandGroups_[i]
+  std::vector<std::int32_t> groupOfBlock_;    // block -> the group solving its equality rows, or -1
+  std::vector<std::uint8_t> coupledContact_;  // contact block -> its normals solved here
+  std::vector<std::int32_t> heldMark_;        // addIsland's: the island whose joints hold a body
   std::vector<Group> groups_;
   // Per covered row, in the group's elimination order:
   std::vector<std::int32_t> entryRow_;    // index into the solver's rows

@@ -874,8 +874,6 @@ void Solver::selectContactIslands(const StepInput& in, const SolverSettings& s, 
 // Newton's cradle would pass its impulse down the row as one shove) and
 // is not a physical spring (its softness is real, group rows are rigid).
 bool Solver::groupableContact(const StepInput& in, const ConstraintBlock& blk) const {
-  if (useIslandBlock_ && islandBlocks().solvesContacts(islandOfBlock_[&blk - blocks_.data()]))
-    return false;  // its island block solves it
   const ContactSurface& surface = in.contacts[blk.contact].surface;
   return surface.restitution <= 0.0 && surface.softness.mode != Softness::Mode::Stiffness;
 }
@@ -1489,7 +1487,8 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     ConstraintRow* rows = &rows_[blk.firstRow];
     const int ne = blk.equality;
     if (blk.unilateral) {
-      if (contactsInBlock) {  // its normals with the island's bounded rows below
+      if (contactsInBlock && islandBlocks().solvesContactNormals(bi)) {
+        // Its normals with the island's bounded rows below.
         solveFriction(blk, useBias, a, b);
         continue;
       }
