@@ -139,8 +139,8 @@ ODE_API int dWorldGetBlockRetakeTurns(dWorldID w);
 ODE_API void dWorldSetBlockChainBlocks(dWorldID w, int on);
 ODE_API int dWorldGetBlockChainBlocks(dWorldID w);
 /* An island whose joints' rows are one exact block and that touches
- * something solves its contacts' normals in the null space
- * of those rows, with its limits and motors (1): a contact then stops
+ * something solves the normals of its jointed bodies' contacts in the
+ * null space of those rows, with its limits and motors (1): a contact then stops
  * what the joints carry with its body, not only the body. Or its
  * contacts stay Gauss-Seidel partners of the joints (0, the default).
  * Islands where that would cost too much a sweep keep the latter.
