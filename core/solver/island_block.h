@@ -68,8 +68,9 @@ class IslandBlocks {
   // cut into chains of at most maxRows rows (positions: each solver body's
   // position, to keep the chains straight; a body beyond its end has
   // none). Island i owns blocks [islandStart[i], islandStart[i+1]).
-  // With withContacts, an island that touches something solves its
-  // contacts' normal rows in the null space of its equality rows too
+  // With withContacts, an island that touches something solves the
+  // normal rows of its jointed bodies' contacts in the null space of its
+  // equality rows too
   // (SolverSettings::islandBlockContacts), where that costs no more than
   // kCoupledContactWork a sweep.
   void select(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,

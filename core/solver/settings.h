@@ -191,10 +191,13 @@ struct SolverSettings {
   // island's bodies through contacts) solves the normal rows of its
   // contacts on jointed bodies in the null space of its equality rows,
   // one row at a time, with its joints' limits and motors
-  // (island_block.h); friction stays each manifold's. A contact then stops what the joints carry
-  // along, not only its own body: a thrown ragdoll's thigh landing at 3.4 m/s went 66 mm deep at
-  // one sweep a step without it (its 7 kg stopped, the other 37 kg pulled after it). Islands where
-  // that costs more than IslandBlocks::kCoupledContactWork a sweep keep their manifold blocks.
+  // (island_block.h); friction stays each manifold's. A contact then
+  // stops what the joints carry along, not only its own body: a thrown
+  // ragdoll's thigh landing at 3.4 m/s went 66 mm deep at one sweep a
+  // step without it (its 7 kg stopped, the other 37 kg pulled after it).
+  // Islands where that costs more than IslandBlocks::kCoupledContactWork
+  // a sweep keep their manifold blocks. Off by default (README: the
+  // ragdolls' joints open wider, and it costs up to 4x at one sub-step).
   bool islandBlockContacts = false;
   // Solve an island of contacts (no joints, no restitution) with at most
   // this many normal rows as one exact block: an active set of the points

@@ -758,18 +758,18 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     }
     heldByJoint_[dummy_] = 0;  // the world: what a pinned cloth hangs from
   }
-  useIslandBlock_ = s.blockMode == BlockMode::Block && s.islandBlockRows > 1;
-  // Islands and their joints stay the same over a step's sub-steps:
-  // choose and order them once. Before the contact groups: an island
-  // block that solves its contacts keeps them from the groups.
-  if (useIslandBlock_ && !islandBlocksSelected_) {
-    islandBlocks().selectIslands(blocks_, dummy_, islandStart_, islandBegin_, islandEnd_,
-                                 s.islandBlockRows, s.chainBlocks, &startX_, s.islandBlockContacts);
-    islandBlocksSelected_ = true;
-  }
   // Before the rows' error is kept for carried sub-steps (rest depth).
   selectContactIslands(in, s, h);
+  useIslandBlock_ = s.blockMode == BlockMode::Block && s.islandBlockRows > 1;
   if (useIslandBlock_) {
+    // Islands and their joints stay the same over a step's sub-steps:
+    // choose and order them once.
+    if (!islandBlocksSelected_) {
+      islandBlocks().selectIslands(blocks_, dummy_, islandStart_, islandBegin_, islandEnd_,
+                                   s.islandBlockRows, s.chainBlocks, &startX_,
+                                   s.islandBlockContacts);
+      islandBlocksSelected_ = true;
+    }
     if (s.rigidJointSoftness) {
       // An island block solves its rows exactly, so they need no softness
       // to converge: the rigid-row spring becomes a rigid row (CFM 0) that
