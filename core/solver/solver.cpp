@@ -1887,8 +1887,37 @@ void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
     fastest = std::max(fastest, in.bodies[i].angularVelocity.squaredNorm());
   });
   const bool atPose = std::sqrt(fastest) * sincePrepared > kStaleProjectionTurn;
-  if (atPose)
-    forEachBody([&](std::int32_t i) { projectionInvI_[i] = in.bodies[i].invInertiaWorld(); });
+  if (atPose) {
+    // The Newton step's metric: turning a body costs what moving its mass
+    // by kProjectionReach times the island's size would, on top of its
+    // inertia. With the bodies' own inertia the smallest correction turned
+    // the lightest links, whose inertia makes turning cheap, and a turn's
+    // second-order opening (r theta^2 / 2) outgrew what the step closed:
+    // chain_swing's errors went 16 -> 52 mm in one pass, its links turned
+    // by up to 3.5 rad, and it tore at 1-4 sub-steps however many passes.
+    // Moves enter the point rows linearly, so this step closes them almost
+    // exactly and leaves turns to the rows only a turn closes (angular
+    // rows, loops). Any positive metric gives a pose on the rows, and the
+    // velocities are not touched; moves still go as M^-1 J^T, so a joint
+    // between two of the island's bodies leaves their centre of mass
+    // where it was. (Below kStaleProjectionTurn the prepared factor, of
+    // the bodies' own inertia, serves: the island turned too little since
+    // for turns to matter.)
+    Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
+    forEachBody([&](std::int32_t i) {
+      lo = lo.cwiseMin(in.bodies[i].position);
+      hi = hi.cwiseMax(in.bodies[i].position);
+    });
+    const double reach = kProjectionReach * (hi - lo).norm();
+    forEachBody([&](std::int32_t i) {
+      const Body& b = in.bodies[i];
+      // (I + c 1)^-1 = W (1 + c W)^-1 with W = I^-1, which also keeps a
+      // locked axis (W singular) locked; W and (1 + c W)^-1 commute.
+      const Mat3 W = b.invInertiaWorld();
+      const double c = reach * reach / bodies_[i].invMass;
+      projectionInvI_[i] = W * (Mat3::Identity() + c * W).inverse();
+    });
+  }
   const std::vector<ConstraintRow>& jacobians = atPose ? projectionRows_ : rows_;
   double lastError = kInf;
   bool check = false;  // the last pass is to be checked
