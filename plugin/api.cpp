@@ -246,6 +246,10 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_PROJECTIONS", v, 0, n, SolverSettings::kMaxProjections)) {
     s.positionProjections = n;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_PROJECTION_TOLERANCE");
+      v && parseReal("BLOCKSTEP_PROJECTION_TOLERANCE", v, x)) {
+    s.projectionTolerance = x;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_THREADS");
       v && parseInt("BLOCKSTEP_THREADS", v, 0, n)) {
     if (n <= SolverSettings::kMaxThreads)
@@ -709,6 +713,14 @@ int dWorldGetBlockThreads(dWorldID w) {
 void dWorldSetBlockProjections(dWorldID w, int projections) {
   if (!inRange(__func__, projections, 0, SolverSettings::kMaxProjections)) return;
   guarded(__func__, [&] { LockedWorld(w).settings().positionProjections = projections; });
+}
+void dWorldSetBlockProjectionTolerance(dWorldID w, dReal error) {
+  setWorldQuantity(__func__, w, error, &ode::BridgeSettings::projectionTolerance,
+                   "an error >= 0 (m, or rad for angular rows; 0: always project)");
+}
+dReal dWorldGetBlockProjectionTolerance(dWorldID w) {
+  return worldQuantity(__func__, w, &ode::BridgeSettings::projectionTolerance,
+                       &SolverSettings::projectionTolerance);
 }
 int dWorldGetBlockProjections(dWorldID w) {
   return guarded(__func__, 0, [&] {

@@ -109,6 +109,7 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   if (settings_.maxTurnPerRefresh) s.maxTurnPerRefresh = *settings_.maxTurnPerRefresh;
   if (settings_.relaxCancelsDrift) s.relaxCancelsDrift = *settings_.relaxCancelsDrift;
   if (settings_.positionProjections) s.positionProjections = *settings_.positionProjections;
+  if (settings_.projectionTolerance) s.projectionTolerance = *settings_.projectionTolerance;
   if (settings_.threads) s.threads = *settings_.threads;
   s.recordStageEnergy = settings_.recordStageEnergy;
   s.runawayEnergyGain = settings_.runawayEnergyGain;

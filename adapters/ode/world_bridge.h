@@ -99,6 +99,9 @@ struct BridgeSettings {
   // Position projections after each sub-step's position update
   // (SolverSettings::positionProjections; unset: the solver's own).
   std::optional<int> positionProjections;
+  // Islands closed within this are not projected
+  // (SolverSettings::projectionTolerance; unset: the solver's own).
+  std::optional<double> projectionTolerance;
   // Threads sweeping independent islands (SolverSettings::threads; unset:
   // the solver's own, 1).
   std::optional<int> threads;

@@ -95,6 +95,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.refreshTurn) dWorldSetBlockRefreshTurn(w, *o.refreshTurn);
   if (o.relaxDrift) dWorldSetBlockRelaxDrift(w, *o.relaxDrift ? 1 : 0);
   if (o.projections) dWorldSetBlockProjections(w, *o.projections);
+  if (o.projectionTolerance) dWorldSetBlockProjectionTolerance(w, *o.projectionTolerance);
   if (o.threads) dWorldSetBlockThreads(w, *o.threads);
   if (o.persistence) dWorldSetBlockContactPersistence(w, *o.persistence);
   if (o.tolerance) dWorldSetBlockTolerance(w, *o.tolerance);
@@ -336,6 +337,8 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.relaxDrift = flag(text, key, value);
   } else if (key == "project") {
     o.projections = whole(text, key, value, 0, 16);
+  } else if (key == "project_tol") {
+    o.projectionTolerance = decimal(text, key, value, 0.0, 1.0);
   } else if (key == "persistence") {
     o.persistence = decimal(text, key, value, 0.0, 1.0);
   } else if (key == "tolerance") {
@@ -396,6 +399,9 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"project",
            "blockstep: position projections of island blocks' rigid joint rows at each step's "
            "end, 0: off"},
+          {"project_tol",
+           "blockstep: with project, islands whose rigid joint rows are within this of closing "
+           "(m or rad) are not projected, 0: always"},
           {"threads", "blockstep: threads sweeping independent islands, 0: one per core"},
           {"persistence", "blockstep: contact persistence, m, 0: off"},
           {"tolerance", "blockstep: stop sweeping below this residual, m/s, 0: off"},

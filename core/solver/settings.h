@@ -160,6 +160,13 @@ struct SolverSettings {
   // it, which its check cannot tell from ODE's own, and a bridge its
   // crate lands on gained twice the energy (README). 0: off.
   int positionProjections = 0;
+  // With projections, an island whose rigid joint rows are all within
+  // this of closing at the step's pose (m, or rad for angular rows) is
+  // left as it is: its projection would cost a factor of its rows at the
+  // pose to take out errors already this small. The ragdoll at one
+  // sub-step, whose joints open more than a millimetre only as it lands,
+  // then pays for few projections. 0 (the default): every step projects.
+  double projectionTolerance = 0.0;
   // Start each solve from the last one's impulses, scaled by the step
   // ratio. Off in the paper preset: with plain Baumgarte (ERP) rows and
   // sweeps that have not converged (high mass ratios, stiff lattices) the

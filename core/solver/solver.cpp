@@ -1961,6 +1961,7 @@ void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
       return;
     }
     if (pass == s.positionProjections || error == 0.0) return;
+    if (pass == 0 && error <= s.projectionTolerance) return;  // closed well enough
     lastError = error;
     for (int g = islands.groupsBegin(island); g < islands.groupsEnd(island); ++g) {
       if (pass == 0 && atPose) islands.factorAtPose(g, blocks_, projectionRows_, bodies_);

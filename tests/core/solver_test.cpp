@@ -891,6 +891,34 @@ TEST(Solver, PositionProjectionClosesAOneSubstepChainAndLeavesItsVelocities) {
     moved = std::max(moved, (with->body(b).position - without->body(b).position).norm());
   }
   EXPECT_GT(moved, 1e-4);  // the projection did move them
+
+  // With a tolerance, an island already that close is left as it is: the
+  // worst row stays within it (a ball joint's gap within sqrt(3) of it),
+  // and a step whose rows close within it is the unprojected step, bit
+  // for bit.
+  const double tolerance = 5e-4;
+  auto tolerant = chainWorld(1);
+  SolverSettings s = tolerant->settings();
+  s.projectionTolerance = tolerance;
+  tolerant->setSettings(s);
+  const double tolerantGap = worstGap(*tolerant, 120);
+  std::printf("the same with projections only past %.3g mm: worst gap %.3g mm\n", 1e3 * tolerance,
+              1e3 * tolerantGap);
+  EXPECT_LT(tolerantGap, std::sqrt(3.0) * tolerance);
+  EXPECT_GT(tolerantGap, 2.0 * projectedGap);  // it did leave some steps alone
+  // The chain's first two steps from rest open it by micrometres.
+  auto unprojected = chainWorld(0);
+  auto everyStep = chainWorld(1);
+  auto pastTolerance = chainWorld(1);
+  pastTolerance->setSettings(s);
+  for (World* w : {unprojected.get(), everyStep.get(), pastTolerance.get()})
+    test::stepN(*w, 2, 1.0 / 60.0);
+  bool projectionMoved = false;
+  for (BodyId b = 0; b < 10; ++b) {
+    EXPECT_EQ(pastTolerance->body(b).position, unprojected->body(b).position);
+    projectionMoved |= everyStep->body(b).position != unprojected->body(b).position;
+  }
+  EXPECT_TRUE(projectionMoved);  // without the tolerance those steps are projected
 }
 
 // A whip of thin links (SCENES.md's chain_swing): fifty 0.1 kg rods of

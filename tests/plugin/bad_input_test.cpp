@@ -168,6 +168,10 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   const int projections = dWorldGetBlockProjections(p.s.world);
   dWorldSetBlockProjections(p.s.world, -1);
   dWorldSetBlockProjections(p.s.world, 17);
+  const dReal projectionTolerance = dWorldGetBlockProjectionTolerance(p.s.world);
+  dWorldSetBlockProjectionTolerance(p.s.world, -1e-3);
+  dWorldSetBlockProjectionTolerance(p.s.world, std::nan(""));
+  dWorldSetBlockProjectionTolerance(p.s.world, INFINITY);
   const int contactRows = dWorldGetBlockContactIslandRows(p.s.world);
   dWorldSetBlockContactIslandRows(p.s.world, -3);
   dWorldSetBlockContactIslandRows(p.s.world, 100000);
@@ -211,6 +215,14 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   EXPECT_EQ(dWorldGetBlockProjections(p.s.world), projections);
   dWorldSetBlockProjections(p.s.world, 2);
   EXPECT_EQ(dWorldGetBlockProjections(p.s.world), 2);
+  for (const char* said : {"dWorldSetBlockProjectionTolerance(-0.001): expected an error >= 0",
+                           "dWorldSetBlockProjectionTolerance(nan): expected an error >= 0",
+                           "dWorldSetBlockProjectionTolerance(inf): expected an error >= 0"})
+    EXPECT_NE(err.find(said), std::string::npos) << err;
+  EXPECT_EQ(projectionTolerance, 0.0);  // every preset projects each step it is asked to
+  EXPECT_EQ(dWorldGetBlockProjectionTolerance(p.s.world), projectionTolerance);
+  dWorldSetBlockProjectionTolerance(p.s.world, 5e-4);
+  EXPECT_EQ(dWorldGetBlockProjectionTolerance(p.s.world), 5e-4);
   EXPECT_EQ(dWorldGetBlockIslandContacts(p.s.world), 0);  // off in every preset
   dWorldSetBlockIslandContacts(p.s.world, 1);
   EXPECT_EQ(dWorldGetBlockIslandContacts(p.s.world), 1);

@@ -184,6 +184,13 @@ ODE_API int dWorldGetBlockRelaxDrift(dWorldID w);
  * BLOCKSTEP_PROJECTIONS=N. */
 ODE_API void dWorldSetBlockProjections(dWorldID w, int projections);
 ODE_API int dWorldGetBlockProjections(dWorldID w);
+/* With projections on, an island whose rigid joint rows are all within
+ * this error of closing at the step's pose (m, or rad for angular rows)
+ * is not projected: it saves the island's factor at the pose where the
+ * joints are already this close (0, the default: every step projects;
+ * finite and >= 0). BLOCKSTEP_PROJECTION_TOLERANCE=E. */
+ODE_API void dWorldSetBlockProjectionTolerance(dWorldID w, dReal error);
+ODE_API dReal dWorldGetBlockProjectionTolerance(dWorldID w);
 /* Threads that sweep a step's independent islands at once (TBB): 1 (the
  * default) the calling thread only, 0 one per core (never more than the
  * cores: a larger count is taken as that). Each island is swept
