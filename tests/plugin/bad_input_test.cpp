@@ -211,7 +211,7 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
             std::string::npos)
       << err;
   EXPECT_NE(err.find("dWorldSetBlockProjections(17): expected 0 to 16"), std::string::npos) << err;
-  EXPECT_EQ(projections, 0);  // the sub-stepped preset's
+  EXPECT_EQ(projections, 1);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockProjections(p.s.world), projections);
   dWorldSetBlockProjections(p.s.world, 2);
   EXPECT_EQ(dWorldGetBlockProjections(p.s.world), 2);
@@ -219,7 +219,7 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
                            "dWorldSetBlockProjectionTolerance(nan): expected an error >= 0",
                            "dWorldSetBlockProjectionTolerance(inf): expected an error >= 0"})
     EXPECT_NE(err.find(said), std::string::npos) << err;
-  EXPECT_EQ(projectionTolerance, 0.0);  // every preset projects each step it is asked to
+  EXPECT_EQ(projectionTolerance, 0.001);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockProjectionTolerance(p.s.world), projectionTolerance);
   dWorldSetBlockProjectionTolerance(p.s.world, 5e-4);
   EXPECT_EQ(dWorldGetBlockProjectionTolerance(p.s.world), 5e-4);

@@ -316,11 +316,12 @@ struct WhipRun {
   }
 };
 
-WhipRun runWhip(bool blockstep, double maxTurn) {
+WhipRun runWhip(bool blockstep, double maxTurn, int projections = -1) {
   ReplaceQuickStep replace(blockstep);
   OdeScene s;
   dWorldSetQuickStepNumIterations(s.world, 20);
   if (maxTurn >= 0.0) dWorldSetBlockMaxTurn(s.world, maxTurn);
+  if (projections >= 0) dWorldSetBlockProjections(s.world, projections);
   horizontalChain(s, 50, 0.1, 6.0, 10.0, true);
   WhipRun run;
   for (int frame = 0; frame < 1000; ++frame) {
@@ -341,16 +342,22 @@ WhipRun runWhip(bool blockstep, double maxTurn) {
   return run;
 }
 
+// Measured with the preset's position projection off (it holds the whip
+// at the fixed count too: checked below), so that what the sub-steps do
+// shows.
 TEST(Runaway, WhippingCapsuleChainHoldsWithMoreSubstepsWhileItTurnsFast) {
-  const WhipRun adaptive = runWhip(true, -1.0);  // the default
-  const WhipRun fixed = runWhip(true, 0.0);
+  const WhipRun adaptive = runWhip(true, -1.0, 0);  // the default sub-steps
+  const WhipRun fixed = runWhip(true, 0.0, 0);
+  const WhipRun fixedProjected = runWhip(true, 0.0);  // the preset: projected past 1 mm
   const WhipRun ode = runWhip(false, -1.0);
   std::printf(
-      "chain_swing (50 capsule links, 100:1 end, quickstep 20, 60 Hz, 1000 frames): worst joint "
-      "gap %.3g mm (99%% of frames within %.3g mm) with up to %d sub-steps (default), %.3g mm "
-      "at a fixed %d; ODE quickstep %.3g mm\n",
+      "chain_swing (50 capsule links, 100:1 end, quickstep 20, 60 Hz, 1000 frames), unprojected: "
+      "worst joint gap %.3g mm (99%% of frames within %.3g mm) with up to %d sub-steps "
+      "(default), %.3g mm at a fixed %d, %.3g mm there projected; ODE quickstep %.3g mm\n",
       1e3 * adaptive.worstGap, 1e3 * adaptive.percentile99(), adaptive.mostSubsteps,
-      1e3 * fixed.worstGap, fixed.mostSubsteps, 1e3 * ode.worstGap);
+      1e3 * fixed.worstGap, fixed.mostSubsteps, 1e3 * fixedProjected.worstGap, 1e3 * ode.worstGap);
+  EXPECT_TRUE(fixedProjected.finite);
+  EXPECT_LT(fixedProjected.worstGap, 0.002);  // within sqrt(3) of the 1 mm tolerance
   EXPECT_TRUE(adaptive.finite);
   EXPECT_LT(adaptive.percentile99(), 0.005);
   EXPECT_LT(adaptive.worstGap, 0.02);

@@ -177,18 +177,19 @@ ODE_API int dWorldGetBlockRelaxDrift(dWorldID w);
 /* Position projections at the end of each step (post-stabilization): an
  * island whose joint equality rows are solved as one island block moves
  * its bodies, not their velocities, so that its rigid joint rows close at
- * the step's last pose, this many times (0 to 16; 0, the default: off).
- * The ragdoll at one sub-step a frame: joints 5.4 mm apart without, 0.005
- * mm with one. Holds under every solver that makes joint rows rigid in
- * island blocks (the sub-stepped ones); the default is the solver's own.
+ * the step's last pose, this many times (0 to 16; 0: off). The ragdoll at
+ * one sub-step a frame: joints 5.4 mm apart without, 0.005 mm with one.
+ * Holds under every solver that makes joint rows rigid in island blocks
+ * (the sub-stepped ones, which project once past 1 mm by default: see
+ * dWorldSetBlockProjectionTolerance); the default is the solver's own.
  * BLOCKSTEP_PROJECTIONS=N. */
 ODE_API void dWorldSetBlockProjections(dWorldID w, int projections);
 ODE_API int dWorldGetBlockProjections(dWorldID w);
 /* With projections on, an island whose rigid joint rows are all within
  * this error of closing at the step's pose (m, or rad for angular rows)
  * is not projected: it saves the island's factor at the pose where the
- * joints are already this close (0, the default: every step projects;
- * finite and >= 0). BLOCKSTEP_PROJECTION_TOLERANCE=E. */
+ * joints are already this close (0: every step projects; finite and >=
+ * 0; the sub-stepped solvers' default is 1 mm). BLOCKSTEP_PROJECTION_TOLERANCE=E. */
 ODE_API void dWorldSetBlockProjectionTolerance(dWorldID w, dReal error);
 ODE_API dReal dWorldGetBlockProjectionTolerance(dWorldID w);
 /* Threads that sweep a step's independent islands at once (TBB): 1 (the
