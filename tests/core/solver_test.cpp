@@ -785,26 +785,39 @@ TEST(Solver, SubsteppedPendulumKeepsItsEnergyAndTheClosedFormPeriod) {
   }
 }
 
+// A chain along x from a world pin at `pin`: body i is linkOf(i), on a
+// ball joint at pin + i * spacing along x to the one before it.
+struct BallChain {
+  std::vector<BodyId> links;
+  std::vector<JointId> joints;
+};
+template <class LinkOf>
+BallChain horizontalBallChain(World& world, int count, const Vec3& pin, double spacing,
+                              LinkOf linkOf) {
+  BallChain chain;
+  BodyId previous = kWorldBody;
+  for (int i = 0; i < count; ++i) {
+    const BodyId link = world.createBody(linkOf(i));
+    BallJointDesc ball;
+    ball.common.bodyA = previous;
+    ball.common.bodyB = link;
+    ball.anchor = pin + Vec3(spacing * i, 0, 0);
+    chain.joints.push_back(world.createJoint(ball));
+    chain.links.push_back(link);
+    previous = link;
+  }
+  return chain;
+}
+
 // The chain that flew apart at 3e8 m/s under the plugin: 40 light spheres
 // on ball joints ending in one 100 times heavier, released horizontally.
 TEST(Solver, HeavyEndChainReleasedHorizontallyHolds) {
   World world;
   world.setSettings(SolverSettings::subStepped(10));
   const double length = 0.05;
-  std::vector<JointId> joints;
-  std::vector<BodyId> links;
-  BodyId previous = kWorldBody;
-  for (int i = 0; i < 40; ++i) {
-    const BodyId link = world.createBody(
-        test::sphereBody(Vec3(length * (i + 1), 0, 2), i == 39 ? 10.0 : 0.1, 0.02));
-    BallJointDesc ball;
-    ball.common.bodyA = previous;
-    ball.common.bodyB = link;
-    ball.anchor = Vec3(length * i, 0, 2);
-    joints.push_back(world.createJoint(ball));
-    links.push_back(link);
-    previous = link;
-  }
+  const auto [links, joints] = horizontalBallChain(world, 40, Vec3(0, 0, 2), length, [&](int i) {
+    return test::sphereBody(Vec3(length * (i + 1), 0, 2), i == 39 ? 10.0 : 0.1, 0.02);
+  });
   double worst = 0.0, fastest = 0.0;
   for (int f = 0; f < 300; ++f) {
     world.step(1.0 / 60.0);
@@ -939,21 +952,10 @@ TEST(Solver, PositionProjectionHoldsAWhipOfThinLinks) {
     s.projectionTolerance = 0.0;  // every step
     world.setSettings(s);
     const double length = 0.1;
-    std::vector<JointId> joints;
-    std::vector<BodyId> links;
-    BodyId previous = kWorldBody;
-    for (int i = 0; i < 50; ++i) {
-      const double mass = i == 49 ? 10.0 : 0.1;
-      const BodyId link = world.createBody(
-          test::boxBody(Vec3(length * (i + 0.5), 0, 6), mass, Vec3(0.1, 0.02, 0.02)));
-      BallJointDesc ball;
-      ball.common.bodyA = previous;
-      ball.common.bodyB = link;
-      ball.anchor = Vec3(length * i, 0, 6);
-      joints.push_back(world.createJoint(ball));
-      links.push_back(link);
-      previous = link;
-    }
+    const auto [links, joints] = horizontalBallChain(world, 50, Vec3(0, 0, 6), length, [&](int i) {
+      return test::boxBody(Vec3(length * (i + 0.5), 0, 6), i == 49 ? 10.0 : 0.1,
+                           Vec3(0.1, 0.02, 0.02));
+    });
     auto energy = [&] {
       double e = 0.0;
       for (BodyId b : links)
