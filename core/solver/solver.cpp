@@ -1887,7 +1887,10 @@ void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
     fastest = std::max(fastest, in.bodies[i].angularVelocity.squaredNorm());
   });
   const bool atPose = std::sqrt(fastest) * sincePrepared > kStaleProjectionTurn;
-  if (atPose) {
+  // M^-1 J^T of the rows at the pose, in the Newton step's metric: only
+  // once the island is to be projected (most steps of the preset find it
+  // within its tolerance).
+  auto useMetricAtPose = [&] {
     // The Newton step's metric: turning a body costs what moving its mass
     // by kProjectionReach times the island's size would, on top of its
     // inertia. With the bodies' own inertia the smallest correction turned
@@ -1917,7 +1920,20 @@ void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
       const double c = reach * reach / bodies_[i].invMass;
       projectionInvI_[i] = W * (Mat3::Identity() + c * W).inverse();
     });
-  }
+    for (int g = islands.groupsBegin(island); g < islands.groupsEnd(island); ++g) {
+      islands.forEachRow(g, [&](std::int32_t r, std::int32_t bi) {
+        const ConstraintBlock& blk = blocks_[bi];
+        ConstraintRow& at = projectionRows_[r];
+        // The static frame and kinematic bodies do not move (and their
+        // inverse inertia is not read: islands on other threads share them).
+        at.invIangA =
+            movable(blk.bodyA) ? Vec3(projectionInvI_[blk.bodyA] * at.angA) : Vec3(Vec3::Zero());
+        at.invIangB =
+            movable(blk.bodyB) ? Vec3(projectionInvI_[blk.bodyB] * at.angB) : Vec3(Vec3::Zero());
+        at.gamma = 0.0;
+      });
+    }
+  };
   const std::vector<ConstraintRow>& jacobians = atPose ? projectionRows_ : rows_;
   double lastError = kInf;
   bool check = false;  // the last pass is to be checked
@@ -1944,13 +1960,6 @@ void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
         at.angA = fresh.angA;
         at.linB = fresh.linB;
         at.angB = fresh.angB;
-        // The static frame and kinematic bodies do not move (and their
-        // inverse inertia is not read: islands on other threads share them).
-        at.invIangA =
-            movable(blk.bodyA) ? Vec3(projectionInvI_[blk.bodyA] * at.angA) : Vec3(Vec3::Zero());
-        at.invIangB =
-            movable(blk.bodyB) ? Vec3(projectionInvI_[blk.bodyB] * at.angB) : Vec3(Vec3::Zero());
-        at.gamma = 0.0;
       }
     }
     if (error > lastError) {  // the last pass made it worse: back to before it
@@ -1962,6 +1971,7 @@ void Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
     }
     if (pass == s.positionProjections || error == 0.0) return;
     if (pass == 0 && error <= s.projectionTolerance) return;  // closed well enough
+    if (pass == 0 && atPose) useMetricAtPose();
     lastError = error;
     for (int g = islands.groupsBegin(island); g < islands.groupsEnd(island); ++g) {
       if (pass == 0 && atPose) islands.factorAtPose(g, blocks_, projectionRows_, bodies_);
