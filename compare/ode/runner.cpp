@@ -532,8 +532,8 @@ void traceDeepPairs(const Scene& scene, const Stepper& stepper, int frame, int c
 // sub-step of frame f's step, and what the stage changed of the total,
 // one line each.
 void traceStageEnergy(dWorldID w, const Scene& scene, const Stepper& stepper, int frame) {
-  static const char* const kStage[] = {"forces",    "warm start", "sweeps",
-                                       "positions", "relax",      "start"};
+  static const char* const kStage[] = {"forces", "warm start", "sweeps",    "positions",
+                                       "relax",  "start",      "projection"};
   const int n = dWorldGetBlockStageEnergy(w, nullptr, nullptr, nullptr, nullptr, 0);
   std::vector<int> substep(n), stage(n);
   std::vector<dReal> kinetic(n), potential(n);
@@ -544,7 +544,7 @@ void traceStageEnergy(dWorldID w, const Scene& scene, const Stepper& stepper, in
     // sub-step counts) each begin their sub-steps with a start.
     const bool start = stage[i] == dBlockStageStart || i == 0;
     const double change = start ? 0.0 : total - (kinetic[i - 1] + potential[i - 1]);
-    const char* name = stage[i] >= 0 && stage[i] < 6 ? kStage[stage[i]] : "?";
+    const char* name = stage[i] >= 0 && stage[i] < 7 ? kStage[stage[i]] : "?";
     std::fprintf(stderr,
                  "energy %s %s frame %d sub-step %d %-10s kinetic %.6g J potential %.6g J "
                  "total %.6g J (%+.3g)\n",

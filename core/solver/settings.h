@@ -364,6 +364,10 @@ struct StageEnergySample {
     // samples begin with it, so one class's sub-steps read apart from
     // another's stepped before or after it.
     Start,
+    // The step's last pose projected onto its rigid joints
+    // (positionProjections): after the last sub-step's relax, when the
+    // projection moved some island.
+    Projection,
   };
   std::int32_t substep = 0;   // 0-based, within the step
   std::int32_t substeps = 0;  // of the islands stepped together

@@ -155,7 +155,7 @@ class Solver {
   int solve(const SolverSettings& s, int substep, double deadline, StepStats& stats);
   void integratePositions(const StepInput& in, const SolverSettings& s, double h);
   static Quat turn(const Quat& q, const RotationUpdate& r, const Vec3& w, double h);
-  void projectPositions(const StepInput& in, const SolverSettings& s, double h, int sub);
+  bool projectPositions(const StepInput& in, const SolverSettings& s, double h, int sub);
   // Position projection keeps the prepared factor while an island turned
   // less than this since its rows were prepared (rad), and checks a pass
   // that turned a body farther than kLinearProjectionTurn (rad).
@@ -168,7 +168,7 @@ class Solver {
   // chain_swing, hair, the bridge and the ragdolls held alike from 1 to 8.
   static constexpr double kProjectionReach = 2.0;
   using JointRowScratch = std::array<ConstraintRow, kMaxJointSlots>;
-  void projectIsland(const StepInput& in, const SolverSettings& s, int island, double sincePrepared,
+  bool projectIsland(const StepInput& in, const SolverSettings& s, int island, double sincePrepared,
                      JointRowScratch& scratch);
   void relaxAgainstDrift(const StepInput& in, double h);
   void relax(const SolverSettings& s, double h);
@@ -257,6 +257,7 @@ class Solver {
   std::vector<Mat3> projectionInvI_;  // per solver body: its inverse inertia at the new pose
   std::vector<Vec3> projectionX_;     // per solver body: its pose before the last pass
   std::vector<Quat> projectionQ_;
+  std::vector<std::uint8_t> projectionMark_;        // per solver body: counted once (projectIsland)
   std::vector<JointRowScratch> projectionScratch_;  // a joint's rows at the pose, per thread
   // Islands whose joint equality rows are one block: a selection per
   // class (each keeps its choice while its structure stays), and the

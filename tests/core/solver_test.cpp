@@ -842,9 +842,11 @@ TEST(Solver, HeavyEndChainReleasedHorizontallyHolds) {
 // so each step opens the turning joints by about r (w h)^2 / 2 and the
 // push-back leaves errors of that size; projected, the step's last pose
 // closes them to the second order of what the projection moved. The
-// projection moves positions only: from one state, a step with it and
-// one without leave the same velocities, bit for bit.
-TEST(Solver, PositionProjectionClosesAOneSubstepChainAndLeavesItsVelocities) {
+// projection moves positions, and what it lifts against gravity its
+// kinetic energy pays: from one state, a step with it and one without
+// leave velocities one common factor apart (below 1), and the same
+// energy.
+TEST(Solver, PositionProjectionClosesAOneSubstepChainAndKeepsItsEnergy) {
   auto chainWorld = [](int projections) {
     auto world = std::make_unique<World>();
     SolverSettings s = SolverSettings::subStepped(1);
@@ -898,13 +900,25 @@ TEST(Solver, PositionProjectionClosesAOneSubstepChainAndLeavesItsVelocities) {
     }
     w->step(1.0 / 60.0);
   }
-  double moved = 0.0;
+  double moved = 0.0, lifted = 0.0;
+  const double scale = with->body(9).linearVelocity.norm() / without->body(9).linearVelocity.norm();
   for (BodyId b = 0; b < 10; ++b) {
-    EXPECT_EQ(with->body(b).linearVelocity, without->body(b).linearVelocity);
-    EXPECT_EQ(with->body(b).angularVelocity, without->body(b).angularVelocity);
-    moved = std::max(moved, (with->body(b).position - without->body(b).position).norm());
+    const Body& on = with->body(b);
+    const Body& off = without->body(b);
+    EXPECT_LT((on.linearVelocity - scale * off.linearVelocity).norm(),
+              1e-12 * off.linearVelocity.norm())
+        << b;
+    EXPECT_LT((on.angularVelocity - scale * off.angularVelocity).norm(),
+              1e-12 * off.angularVelocity.norm())
+        << b;
+    moved = std::max(moved, (on.position - off.position).norm());
+    lifted += on.mass * 9.81 * (on.position.z() - off.position.z());
   }
-  EXPECT_GT(moved, 1e-4);  // the projection did move them
+  EXPECT_GT(moved, 1e-4);   // the projection did move them
+  EXPECT_GT(lifted, 1e-4);  // up, onto their circles: J
+  EXPECT_LT(scale, 1.0);
+  EXPECT_NEAR(test::mechanicalEnergy(*with, 10), test::mechanicalEnergy(*without, 10),
+              1e-9 * lifted);
 
   // With a tolerance, an island already that close is left as it is: the
   // worst row stays within it (a ball joint's gap within sqrt(3) of it),
@@ -935,6 +949,43 @@ TEST(Solver, PositionProjectionClosesAOneSubstepChainAndLeavesItsVelocities) {
   EXPECT_TRUE(projectionMoved);  // without the tolerance those steps are projected
 }
 
+// The compare runner's chain_heavy_swing in the core: fifty 0.1 kg rods
+// on ball joints ending in a 100 kg weight (1000:1), released horizontally
+// from a pin, projected at one sub-step of 1/60 s. Where the light links
+// turn over a radian a step, the joints' linearization lets the weight's
+// velocity run against the chain; the projection puts it back every
+// step, and while it moved positions only, gravity went on speeding the
+// weight for nothing: the chain ended with about fifty times the energy
+// of its fall. Its speed now pays for what the projection lifts.
+TEST(Solver, PositionProjectionGivesAHeavyEndedChainNoEnergy) {
+  World world;
+  SolverSettings s = SolverSettings::subStepped(1);
+  s.positionProjections = 1;
+  s.projectionTolerance = 0.0;
+  world.setSettings(s);
+  const double length = 0.1;
+  const auto [links, joints] = horizontalBallChain(world, 50, Vec3(0, 0, 6), length, [&](int i) {
+    return test::boxBody(Vec3(length * (i + 0.5), 0, 6), i == 49 ? 100.0 : 0.1,
+                         Vec3(0.1, 0.02, 0.02));
+  });
+  const int n = static_cast<int>(links.size());
+  const double start = test::mechanicalEnergy(world, n);
+  const double fall = 100.0 * 9.81 * 5.0;  // J, the weight's drop to below the pin
+  double rise = 0.0, worst = 0.0;
+  for (int f = 0; f < 600; ++f) {
+    world.step(1.0 / 60.0);
+    rise = std::max(rise, test::mechanicalEnergy(world, n) - start);
+    for (JointId j : joints)
+      worst = std::max(worst, world.jointError(j).linear);
+  }
+  std::printf(
+      "50 rods, 100 kg end, released horizontally, one sub-step projected: energy above the "
+      "start at most %.3g J (of %.0f J of fall), worst gap %.3g mm\n",
+      rise, fall, 1e3 * worst);
+  EXPECT_LT(rise, 0.01 * fall);
+  EXPECT_LT(worst, 0.01);
+}
+
 // A whip of thin links (SCENES.md's chain_swing): fifty 0.1 kg rods of
 // 0.1 m on ball joints, the last 10 kg, released horizontally from a pin,
 // at one sub-step of 1/60 s. Its light links turn fast; projected with
@@ -942,8 +993,10 @@ TEST(Solver, PositionProjectionClosesAOneSubstepChainAndLeavesItsVelocities) {
 // them (their inertia makes that cheap), the turns' second-order opening
 // outgrew what each pass closed, and the chain tore (9 m at 300 frames).
 // With turns priced as the island's size (Solver::kProjectionReach) the
-// step's pose closes to within a few tenths of a millimetre, and the
-// chain gains no energy of note (the projection moves positions only).
+// step's pose closes to within a few millimetres (a pass that closes a
+// row by less than its turns open it is the worst), and the chain never
+// has more energy than it started with: what the projection lifts, its
+// speed pays for.
 TEST(Solver, PositionProjectionHoldsAWhipOfThinLinks) {
   auto whip = [](int projections, double& worstGap, double& energyRise) {
     World world;
@@ -981,8 +1034,8 @@ TEST(Solver, PositionProjectionHoldsAWhipOfThinLinks) {
       "%.3g mm projected; energy above the start at most %.3g J and %.3g J (of %.0f J of fall)\n",
       1e3 * plainGap, 1e3 * projectedGap, plainRise, projectedRise, 10.0 * 9.81 * 5.0);
   EXPECT_GT(plainGap, 0.1);  // unprojected, one sub-step tears it
-  EXPECT_LT(projectedGap, 2e-3);
-  EXPECT_LT(projectedRise, 0.05 * 10.0 * 9.81 * 5.0);
+  EXPECT_LT(projectedGap, 5e-3);
+  EXPECT_LT(projectedRise, 1e-3 * 10.0 * 9.81 * 5.0);
 }
 
 // Only the rows made rigid in an island block are projected: a joint

@@ -70,6 +70,17 @@ inline double kineticEnergy(const Body& b) {
   return 0.5 * b.mass * b.linearVelocity.squaredNorm() + 0.5 * wb.dot(b.inertiaBody * wb);
 }
 
+// Kinetic plus potential energy in the world's gravity of the bodies
+// 0 .. n-1 (all dynamic), J.
+inline double mechanicalEnergy(const World& world, int n) {
+  double e = 0.0;
+  for (BodyId b = 0; b < n; ++b) {
+    const Body& body = world.body(b);
+    e += test::kineticEnergy(body) - body.mass * world.gravity().dot(body.position);
+  }
+  return e;
+}
+
 inline Vec3 angularMomentum(const Body& b) {
   const Mat3 R = b.orientation.toRotationMatrix();
   return R * b.inertiaBody * R.transpose() * b.angularVelocity;

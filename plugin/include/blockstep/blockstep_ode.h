@@ -287,7 +287,8 @@ enum {
   dBlockStageSweeps = 2,    /* the velocity sweeps, with position correction */
   dBlockStagePositions = 3, /* the positions moved */
   dBlockStageRelax = 4,     /* the bias-free sweeps */
-  dBlockStageStart = 5      /* the sub-step's start, before its forces */
+  dBlockStageStart = 5,     /* the sub-step's start, before its forces */
+  dBlockStageProjection = 6 /* the last pose projected onto the rigid joints (when it moved) */
 };
 /* Copies up to capacity samples of the last step of w, in the order they
  * were taken (any array may be NULL): the sub-step (0-based), the stage
