@@ -1863,7 +1863,14 @@ bool Solver::projectPositions(const StepInput& in, const SolverSettings& s, doub
   forEachIndex(
       islandEnd_ - islandBegin_,
       [&](int k) {
-        const int slot = pooled_ ? tbb::this_task_arena::current_thread_index() : 0;
+        // A thread of the pool's arena has its index there; forRanges runs
+        // a short loop on the calling thread, outside the arena, whose
+        // index is then another arena's or none (-1: the write went before
+        // the scratch and corrupted the heap). Such a loop is serial, and
+        // slot 0 is free for it.
+        const int index = tbb::this_task_arena::current_thread_index();
+        const std::size_t slot =
+            pooled_ && index >= 0 && static_cast<std::size_t>(index) < slots ? index : 0;
         if (projectIsland(in, s, islandBegin_ + k, sincePrepared, projectionScratch_[slot]))
           moved.store(true, std::memory_order_relaxed);
       },
