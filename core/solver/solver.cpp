@@ -173,7 +173,13 @@ int Solver::substepsAt(const SolverSettings& s, double h, double turnRate) {
   return static_cast<int>(std::min<double>(wanted, mostSubsteps(s)));
 }
 
-void Solver::notePeakTurnRate(const StepInput& in) {
+void Solver::notePeakTurnRate(const StepInput& in, const SolverSettings& s) {
+  // An island whose joints the step's end projects back onto their rows
+  // (projectIsland) needs no sub-steps for what its joints' turns open:
+  // only its contacts' turns count. A whip of thin links at one sub-step
+  // held 0.74 mm so for 0.084 ms a frame, where the turn's extra
+  // sub-steps took 0.13 ms and left 2.6 mm (chain_swing).
+  const bool projects = s.positionProjections > 0 && useIslandBlock_ && s.rigidJointSoftness;
   forEachBody(
       static_cast<int>(in.bodies.size()),
       [&](std::int32_t i) {
@@ -183,6 +189,9 @@ void Solver::notePeakTurnRate(const StepInput& in) {
         const double turn = w.squaredNorm();
         peakTurnRate_ = std::max(peakTurnRate_, turn);
         islandFullTurn_[island] = std::max(islandFullTurn_[island], turn);
+        if (projects && !touchedByContact_[i] && island >= islandBegin_ && island < islandEnd_ &&
+            islandBlocks().covers(island))
+          return;
         double& seen = islandTurn_[island];
         switch (leverArms_[i]) {
           case LeverArms::None:
@@ -211,6 +220,7 @@ void Solver::notePeakTurnRate(const StepInput& in) {
 void Solver::noteLeverArms(const StepInput& in) {
   const std::size_t bodyCount = in.bodies.size();
   leverArms_.assign(bodyCount, LeverArms::None);
+  touchedByContact_.assign(bodyCount, 0);
   leverAxis_.resize(bodyCount);
   auto note = [&](BodyId i, const FreeTurn& free) {
     if (i == kWorldBody || leverArms_[i] == LeverArms::Any) return;
@@ -235,6 +245,8 @@ void Solver::noteLeverArms(const StepInput& in) {
       const ContactManifold& m = in.contacts[contactIndex(source)];
       note(m.bodyA, FreeTurn{});
       note(m.bodyB, FreeTurn{});
+      for (const BodyId body : {m.bodyA, m.bodyB})
+        if (body != kWorldBody) touchedByContact_[body] = 1;
       continue;
     }
     const Joint& joint = in.joints[source];
@@ -386,7 +398,7 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
     stats.iterations += solve(s, sub, subBudget, stats);
     solveSinkingContacts(in, s, h, stats);
     recordStageEnergy(in, s, After::Sweeps, sub, substeps, stats);
-    if (s.maxTurnPerSubstep > 0.0 || s.maxTurnPerRefresh > 0.0) notePeakTurnRate(in);
+    if (s.maxTurnPerSubstep > 0.0 || s.maxTurnPerRefresh > 0.0) notePeakTurnRate(in, s);
     integratePositions(in, s, h);
     recordStageEnergy(in, s, After::Positions, sub, substeps, stats);
     if (s.relaxIterations > 0 && s.relaxCancelsDrift) relaxAgainstDrift(in, h);
@@ -1850,6 +1862,8 @@ bool Solver::projectPositions(const StepInput& in, const SolverSettings& s, doub
     projectionInvI_.resize(bodies_.size());
     projectionX_.resize(bodies_.size());
     projectionMark_.resize(bodies_.size(), 0);
+    projectionStartX_.resize(bodies_.size());
+    projectionStartQ_.resize(bodies_.size());
     projectionQ_.resize(bodies_.size());
   }
   const std::size_t slots = pooled_ ? static_cast<std::size_t>(pool_->threads) : 1;
@@ -1948,11 +1962,7 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
     }
   };
   const std::vector<ConstraintRow>& jacobians = atPose ? projectionRows_ : rows_;
-  // The work gravity and the applied forces do along the passes' moves,
-  // and that of the last pass alone (undone if it made things worse).
-  double work = 0.0, passWork = 0.0;
   int moves = 0;  // passes whose moves the pose keeps
-  const Vec3 gravity = in.gravity;
   [&] {
     double lastError = kInf;
     bool check = false;  // the last pass is to be checked
@@ -1986,12 +1996,18 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
           in.bodies[i].position = projectionX_[i];
           in.bodies[i].orientation = projectionQ_[i];
         });
-        work -= passWork;
+        --moves;
         return;
       }
       if (pass == s.positionProjections || error == 0.0) return;
       if (pass == 0 && error <= s.projectionTolerance) return;  // closed well enough
-      if (pass == 0 && atPose) useMetricAtPose();
+      if (pass == 0) {
+        if (atPose) useMetricAtPose();
+        forEachBody([&](std::int32_t i) {
+          projectionStartX_[i] = in.bodies[i].position;
+          projectionStartQ_[i] = in.bodies[i].orientation;
+        });
+      }
       lastError = error;
       for (int g = islands.groupsBegin(island); g < islands.groupsEnd(island); ++g) {
         if (pass == 0 && atPose) islands.factorAtPose(g, blocks_, projectionRows_, bodies_);
@@ -2016,54 +2032,95 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
         projectionQ_[i] = in.bodies[i].orientation;
       });
       double largestTurn = 0.0;
-      passWork = 0.0;
       forEachBody([&](std::int32_t i) {
         Vec3& move = projectionMove_[i];
         Vec3& turnBy = projectionTurn_[i];
         if (move.isZero() && turnBy.isZero()) return;
         Body& b = in.bodies[i];
         largestTurn = std::max(largestTurn, turnBy.squaredNorm());
-        const Vec3 weight = b.gravity ? Vec3(b.mass * gravity) : Vec3(Vec3::Zero());
-        passWork += (weight + b.force).dot(move) + b.torque.dot(turnBy);
         b.position += move;
         b.orientation = integrateRotation(b.orientation, turnBy, 1.0);
         move.setZero();
         turnBy.setZero();
       });
-      work += passWork;
+      ++moves;
       check = largestTurn > kLinearProjectionTurn * kLinearProjectionTurn;
     }
   }();
-  // The projection moves bodies without the forces that would move them
-  // so: what gravity and the applied forces do along those moves is energy
-  // no stage accounts for. Semi-implicit Euler moves a pendulum's bob along
-  // its tangent and the projection lifts it back onto its circle, where
-  // the true motion rises the same way and pays for it in speed. Where a
-  // joint's linearization lets a body's velocity run against what holds it
-  // (a 100 kg weight at the end of a thin chain, its links turning over a
-  // radian a sub-step), the projection puts it back every step while
-  // gravity goes on speeding it: chain_heavy_swing gained 316 kJ in 10 s
-  // at one sub-step. So the island's velocities are scaled for its kinetic
-  // energy to pay what the moves took (work < 0). A uniform scale keeps
-  // J v = 0 on its rigid rows, and the moves of joints between the
-  // island's own bodies leave its centre of mass where it was, so under
-  // gravity alone they do no work. What the moves would give (work > 0)
-  // is not added: the projection never speeds an island up.
-  if (!(work < 0.0)) return moves > 0;
-  double kinetic = 0.0;
-  forEachBody([&](std::int32_t i) {
-    if (projectionMark_[i]) return;
-    projectionMark_[i] = 1;
-    kinetic += kineticEnergy(in.bodies[i], bodies_[i].v, bodies_[i].w);
+  if (moves > 0) payForProjection(in, island);
+  return moves > 0;
+}
+
+// The projection moves bodies without the forces that would move them so:
+// the work W that gravity and the applied forces do along those moves is
+// energy no stage accounts for. Semi-implicit Euler moves a pendulum's bob
+// along its tangent and the projection lifts it back onto its circle,
+// where the true motion rises the same way and pays for it in speed.
+// Where a joint's linearization lets a body's velocity run against what
+// holds it (a 100 kg weight at the end of a thin chain, its links turning
+// over a radian a sub-step), the projection puts it back every step while
+// gravity goes on speeding it: chain_heavy_swing gained 316 kJ in 10 s at
+// one sub-step. So where W < 0 the kinetic energy pays it, taken along
+// the moves themselves: v += alpha dx / h (and w += alpha dtheta / h),
+// the velocity that would have made them (SHAKE's alpha = 1), with the
+// least alpha in [0, 1] that takes W out, or as much as that direction
+// holds. Bodies the projection did not move keep their velocities: a
+// uniform scale of the island's instead froze the bridge's crate as the
+// planks were lifted back under it, and warm started impulses then threw
+// it (1.4 kJ gained). The moves of joints between the island's own bodies
+// leave its centre of mass where it was, so under gravity alone they do
+// no work. What the moves would give (W > 0) is not added: the projection
+// never speeds an island up.
+void Solver::payForProjection(const StepInput& in, int island) {
+  const std::int32_t first = islandStart_[island], end = islandStart_[island + 1];
+  auto forEachMovedBody = [&](auto&& f) {
+    for (std::int32_t bi = first; bi < end; ++bi) {
+      const ConstraintBlock& blk = blocks_[bi];
+      for (const std::int32_t i : {blk.bodyA, blk.bodyB}) {
+        if (i == dummy_ || bodies_[i].invMass == 0.0 || projectionMark_[i]) continue;
+        projectionMark_[i] = 1;
+        f(i);
+      }
+    }
+  };
+  auto unmark = [&] {
+    for (std::int32_t bi = first; bi < end; ++bi)
+      projectionMark_[blocks_[bi].bodyA] = projectionMark_[blocks_[bi].bodyB] = 0;
+  };
+  // Per body, the velocity u that makes its move over the step; then
+  // W = sum (m g + F) . dx + tau . dtheta, and the kinetic energy's change
+  // along u, alpha <v, u> + alpha^2 <u, u> / 2 in the bodies' mass metric.
+  const double h = in.h;
+  double work = 0.0, along = 0.0, norm = 0.0;
+  forEachMovedBody([&](std::int32_t i) {
+    const Body& b = in.bodies[i];
+    const Vec3 dx = b.position - projectionStartX_[i];
+    const Eigen::AngleAxisd turned(b.orientation * projectionStartQ_[i].conjugate());
+    const Vec3 dtheta = turned.angle() * turned.axis();
+    const Vec3 weight = b.gravity ? Vec3(b.mass * in.gravity) : Vec3(Vec3::Zero());
+    work += (weight + b.force).dot(dx) + b.torque.dot(dtheta);
+    const Mat3 R = b.orientation.toRotationMatrix();
+    const Vec3 spin = R * (b.inertiaBody * (R.transpose() * dtheta)) / h;  // I u_w
+    projectionMove_[i] = dx / h;
+    projectionTurn_[i] = dtheta / h;
+    along += b.mass * bodies_[i].v.dot(dx / h) + bodies_[i].w.dot(spin);
+    norm += b.mass * (dx / h).squaredNorm() + (dtheta / h).dot(spin);
   });
-  const double scale = kinetic > 0.0 ? std::sqrt(std::max(0.0, kinetic + work) / kinetic) : 1.0;
-  forEachBody([&](std::int32_t i) {
-    if (!projectionMark_[i]) return;
-    projectionMark_[i] = 0;
-    bodies_[i].v *= scale;
-    bodies_[i].w *= scale;
+  unmark();
+  double alpha = 0.0;
+  if (work < 0.0 && along < 0.0 && norm > 0.0) {
+    const double least = -along * along / (2.0 * norm);  // at alpha = -along / norm
+    alpha = least <= work ? (-along - std::sqrt(along * along + 2.0 * norm * work)) / norm
+                          : -along / norm;
+    alpha = std::min(alpha, 1.0);
+  }
+  forEachMovedBody([&](std::int32_t i) {
+    bodies_[i].v += alpha * projectionMove_[i];
+    bodies_[i].w += alpha * projectionTurn_[i];
+    projectionMove_[i].setZero();
+    projectionTurn_[i].setZero();
   });
-  return true;
+  unmark();
 }
 
 // One body's orientation update (RotationUpdate says which).

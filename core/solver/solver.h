@@ -91,7 +91,7 @@ class Solver {
   // The fastest turn of a body in a constrained island, after a sweep:
   // the whole turn (carried rows) and the turn its joint anchors see
   // (sub-step counts).
-  void notePeakTurnRate(const StepInput& in);
+  void notePeakTurnRate(const StepInput& in, const SolverSettings& s);
   void noteLeverArms(const StepInput& in);
   // Which turn of a body its rows see (noteLeverArms): none, all but
   // the turn about one line through its centre of mass (leverAxis_, body
@@ -168,6 +168,7 @@ class Solver {
   // chain_swing, hair, the bridge and the ragdolls held alike from 1 to 8.
   static constexpr double kProjectionReach = 2.0;
   using JointRowScratch = std::array<ConstraintRow, kMaxJointSlots>;
+  void payForProjection(const StepInput& in, int island);
   bool projectIsland(const StepInput& in, const SolverSettings& s, int island, double sincePrepared,
                      JointRowScratch& scratch);
   void relaxAgainstDrift(const StepInput& in, double h);
@@ -226,6 +227,7 @@ class Solver {
   // The same for the whole turn (carried rows).
   std::vector<double> islandFullTurn_, bodyFullTurn_, islandLastFullTurn_;
   std::vector<LeverArms> leverArms_;
+  std::vector<std::uint8_t> touchedByContact_;  // per body, this step (noteLeverArms)
   std::vector<Vec3> leverAxis_;
   bool turnRateSeen_ = false;    // a step has measured it (a first step has no history)
   double nominalSubstep_ = 0.0;  // s: the step over the settings' sub-steps
@@ -257,6 +259,8 @@ class Solver {
   std::vector<Mat3> projectionInvI_;  // per solver body: its inverse inertia at the new pose
   std::vector<Vec3> projectionX_;     // per solver body: its pose before the last pass
   std::vector<Quat> projectionQ_;
+  std::vector<Vec3> projectionStartX_;  // per solver body: its pose before the first pass
+  std::vector<Quat> projectionStartQ_;
   std::vector<std::uint8_t> projectionMark_;        // per solver body: counted once (projectIsland)
   std::vector<JointRowScratch> projectionScratch_;  // a joint's rows at the pose, per thread
   // Islands whose joint equality rows are one block: a selection per
