@@ -404,7 +404,8 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
     if (s.relaxIterations > 0 && s.relaxCancelsDrift) relaxAgainstDrift(in, h);
     relax(s, h);
     recordStageEnergy(in, s, After::Relax, sub, substeps, stats);
-    // The step's last pose closes its rigid joints (velocities stay).
+    // The step's last pose closes its rigid joints (payForProjection says
+    // what that does to velocities).
     if (sub == substeps - 1 && projectPositions(in, s, h, sub))
       recordStageEnergy(in, s, After::Projection, sub, substeps, stats);
     if (countEnergy) {
@@ -1927,8 +1928,8 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
     // by up to 3.5 rad, and it tore at 1-4 sub-steps however many passes.
     // Moves enter the point rows linearly, so this step closes them almost
     // exactly and leaves turns to the rows only a turn closes (angular
-    // rows, loops). Any positive metric gives a pose on the rows, and the
-    // velocities are not touched; moves still go as M^-1 J^T, so a joint
+    // rows, loops). Any positive metric gives a pose on the rows; moves
+    // still go as M^-1 J^T, so a joint
     // between two of the island's bodies leaves their centre of mass
     // where it was. (Below kStaleProjectionTurn the prepared factor, of
     // the bodies' own inertia, serves: the island turned too little since
