@@ -2084,9 +2084,12 @@ void Solver::payForProjection(const StepInput& in, int island) {
       }
     }
   };
+  // Only movable bodies: the static and kinematic ones are shared with
+  // islands on other threads.
   auto unmark = [&] {
     for (std::int32_t bi = first; bi < end; ++bi)
-      projectionMark_[blocks_[bi].bodyA] = projectionMark_[blocks_[bi].bodyB] = 0;
+      for (const std::int32_t i : {blocks_[bi].bodyA, blocks_[bi].bodyB})
+        if (i != dummy_ && bodies_[i].invMass != 0.0) projectionMark_[i] = 0;
   };
   // Per body, the velocity u that makes its move over the step; then
   // W = sum (m g + F) . dx + tau . dtheta, and the kinetic energy's change
