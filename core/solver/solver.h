@@ -227,7 +227,7 @@ class Solver {
   // The same for the whole turn (carried rows).
   std::vector<double> islandFullTurn_, bodyFullTurn_, islandLastFullTurn_;
   std::vector<LeverArms> leverArms_;
-  std::vector<std::uint8_t> touchedByContact_;  // per body, this step (noteLeverArms)
+  std::vector<std::uint8_t> islandTouched_;  // per island: a contact holds it, this step
   std::vector<Vec3> leverAxis_;
   bool turnRateSeen_ = false;    // a step has measured it (a first step has no history)
   double nominalSubstep_ = 0.0;  // s: the step over the settings' sub-steps
