@@ -97,9 +97,9 @@ struct SolverSettings {
   // row (Solver::noteLeverArms). The rows are linear in the turn: a
   // light link whipping at 240 rad/s turns 0.4 rad in a 1/600 s sub-step
   // and its joints open by r (1 - cos 0.4), 4 mm at once. An island
-  // whose joints the step's end projects (positionProjections) counts
-  // only the turns of its bodies that touch something: the projection
-  // closes what its joints' turns open. Rigid-row springs keep the
+  // whose joints the step's end projects (positionProjections) and that
+  // touches nothing takes no more sub-steps for its turns: the projection
+  // closes what they open. Rigid-row springs keep the
   // stiffness of the nominal sub-step. 0: off (a fixed count).
   double maxTurnPerSubstep = 0.0;
   int maxSubstepFactor = 4;
@@ -160,10 +160,10 @@ struct SolverSettings {
   // at w opens by about r (w h)^2 / 2 a sub-step (relaxAgainstDrift's
   // comment) and the push-back leaves errors of that size: the ragdoll of
   // ../shared/SCENES.md at one 1/60 s sub-step opened 5.4 mm, projected
-  // once 0.005 mm. It moves positions; velocities change only where the
-  // moves lifted bodies against gravity or the applied forces, by the
-  // share of the moves' own velocity that pays for it
-  // (Solver::payForProjection). Only the rows made rigid in an
+  // once 0.005 mm. It moves positions; in an island that touches
+  // nothing, velocities change only where the moves lifted bodies against
+  // gravity or the applied forces, by the share of the moves' own
+  // velocity that pays for it (Solver::payForProjection). Only the rows made rigid in an
   // island block (rigidJointSoftness) are projected: a spring keeps its
   // stretch. The sub-stepped preset projects once past
   // kProjectionTolerance (below). Projecting every step, a slow double
