@@ -845,7 +845,7 @@ TEST(Solver, HeavyEndChainReleasedHorizontallyHolds) {
 // the projection lifts against gravity the bodies' speed pays, along the
 // moves: from one state, a step with it and one without leave velocities
 // apart by one share alpha of the moves' own velocity, and no more energy
-// than the lift.
+// than the lift; an island resting on the ground keeps its velocities.
 TEST(Solver, PositionProjectionClosesAOneSubstepChainAndPaysForItsLift) {
   auto chainWorld = [](int projections) {
     auto world = std::make_unique<World>();
@@ -938,6 +938,36 @@ TEST(Solver, PositionProjectionClosesAOneSubstepChainAndPaysForItsLift) {
               1e3 * paid, alpha);
   EXPECT_GT(paid, 0.0);
   EXPECT_LE(paid, lifted * (1.0 + 1e-9));
+
+  // An island a contact holds does not pay (its moves' velocity went into
+  // its contacts): with the lowest ball resting on the ground, the
+  // projected step moves the balls and leaves the unprojected step's
+  // velocities, bit for bit.
+  BodyId lowest = 0;
+  for (BodyId b = 0; b < 10; ++b)
+    if (plain->body(b).position.z() < plain->body(lowest).position.z()) lowest = b;
+  auto touchingWithout = chainWorld(0);
+  auto touchingWith = chainWorld(1);
+  for (World* w : {touchingWithout.get(), touchingWith.get()}) {
+    for (BodyId b = 0; b < 10; ++b) {
+      w->setPosition(b, plain->body(b).position);
+      w->setOrientation(b, plain->body(b).orientation);
+      w->setLinearVelocity(b, plain->body(b).linearVelocity);
+      w->setAngularVelocity(b, plain->body(b).angularVelocity);
+      w->addShape(Shape::sphere(b, 0.02));
+    }
+    w->addShape(Shape::plane(Vec3::UnitZ(), plain->body(lowest).position.z() - 0.019));
+    w->step(h);
+  }
+  double touchedMove = 0.0;
+  for (BodyId b = 0; b < 10; ++b) {
+    EXPECT_EQ(touchingWith->body(b).linearVelocity, touchingWithout->body(b).linearVelocity) << b;
+    EXPECT_EQ(touchingWith->body(b).angularVelocity, touchingWithout->body(b).angularVelocity) << b;
+    touchedMove = std::max(
+        touchedMove, (touchingWith->body(b).position - touchingWithout->body(b).position).norm());
+  }
+  EXPECT_FALSE(touchingWith->contacts().empty());
+  EXPECT_GT(touchedMove, 1e-4);  // the projection did move them
 
   // With a tolerance, an island already that close is left as it is: the
   // worst row stays within it (a ball joint's gap within sqrt(3) of it),
