@@ -365,8 +365,11 @@ void IslandBlocks::orderByProfile(const std::vector<ConstraintBlock>& blocks,
   byDegree_.resize(m);
   for (std::int32_t l = 0; l < m; ++l)
     byDegree_[l] = l;
-  std::stable_sort(byDegree_.begin(), byDegree_.end(),
-                   [&](std::int32_t p, std::int32_t q) { return degree[p] < degree[q]; });
+  // Ties in index order, as a stable sort leaves them (std::stable_sort
+  // takes a buffer from the heap).
+  std::sort(byDegree_.begin(), byDegree_.end(), [&](std::int32_t p, std::int32_t q) {
+    return degree[p] != degree[q] ? degree[p] < degree[q] : p < q;
+  });
   neighbourMark_.assign(m, -1);
   std::int32_t head = 0, tail = 0, nextStart = 0;
   while (tail < m) {

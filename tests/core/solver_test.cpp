@@ -889,15 +889,17 @@ TEST(Solver, PositionProjectionClosesAOneSubstepChainAndPaysForItsLift) {
   EXPECT_LT(twiceGap, projectedGap);
 
   // From the plain chain's state, a fresh world each way, one step.
+  auto takeState = [&](World& w, BodyId b) {
+    w.setPosition(b, plain->body(b).position);
+    w.setOrientation(b, plain->body(b).orientation);
+    w.setLinearVelocity(b, plain->body(b).linearVelocity);
+    w.setAngularVelocity(b, plain->body(b).angularVelocity);
+  };
   auto without = chainWorld(0);
   auto with = chainWorld(1);
   for (World* w : {without.get(), with.get()}) {
-    for (BodyId b = 0; b < 10; ++b) {
-      w->setPosition(b, plain->body(b).position);
-      w->setOrientation(b, plain->body(b).orientation);
-      w->setLinearVelocity(b, plain->body(b).linearVelocity);
-      w->setAngularVelocity(b, plain->body(b).angularVelocity);
-    }
+    for (BodyId b = 0; b < 10; ++b)
+      takeState(*w, b);
     w->step(1.0 / 60.0);
   }
   // The projection moved the bodies by dx (and turned them by dtheta);
@@ -950,10 +952,7 @@ TEST(Solver, PositionProjectionClosesAOneSubstepChainAndPaysForItsLift) {
   auto touchingWith = chainWorld(1);
   for (World* w : {touchingWithout.get(), touchingWith.get()}) {
     for (BodyId b = 0; b < 10; ++b) {
-      w->setPosition(b, plain->body(b).position);
-      w->setOrientation(b, plain->body(b).orientation);
-      w->setLinearVelocity(b, plain->body(b).linearVelocity);
-      w->setAngularVelocity(b, plain->body(b).angularVelocity);
+      takeState(*w, b);
       w->addShape(Shape::sphere(b, 0.02));
     }
     w->addShape(Shape::plane(Vec3::UnitZ(), plain->body(lowest).position.z() - 0.019));
