@@ -177,8 +177,9 @@ ODE_API int dWorldGetBlockRelaxDrift(dWorldID w);
 /* Position projections at the end of each step (post-stabilization): an
  * island whose joint equality rows are solved as one island block moves
  * its bodies so that its rigid joint rows close at the step's last pose,
- * this many times (0 to 16; 0: off); what the moves lift against gravity
- * the moved bodies' speed along them pays. The ragdoll at
+ * this many times (0 to 16; 0: off); in an island that touches nothing,
+ * what the moves lift against gravity the moved bodies' speed along them
+ * pays. The ragdoll at
  * one sub-step a frame: joints 5.4 mm apart without, 0.005 mm with one.
  * Holds under every solver that makes joint rows rigid in island blocks
  * (the sub-stepped ones, which project once past 1 mm by default: see
