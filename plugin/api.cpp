@@ -224,8 +224,8 @@ void readEnvironment() {
     s.chainBlocks = n != 0;
   }
   if (const char* v = std::getenv("BLOCKSTEP_ISLAND_CONTACTS");
-      v && parseInt("BLOCKSTEP_ISLAND_CONTACTS", v, 0, n, 1)) {
-    s.islandBlockContacts = n != 0;
+      v && parseInt("BLOCKSTEP_ISLAND_CONTACTS", v, 0, n, 2)) {
+    s.islandBlockContacts = n;
   }
   // Angles, rad (parseReal takes finite numbers >= 0 only; 0: off).
   if (const char* v = std::getenv("BLOCKSTEP_MAX_TURN");
@@ -626,12 +626,17 @@ void dWorldSetBlockChainBlocks(dWorldID w, int on) {
 int dWorldGetBlockChainBlocks(dWorldID w) {
   return worldFlag(__func__, w, &ode::BridgeSettings::chainBlocks, &SolverSettings::chainBlocks);
 }
-void dWorldSetBlockIslandContacts(dWorldID w, int on) {
-  setWorldFlag(__func__, w, on, &ode::BridgeSettings::islandBlockContacts);
+void dWorldSetBlockIslandContacts(dWorldID w, int mode) {
+  if (!inRange(__func__, mode, 0, 2)) return;
+  guarded(__func__, [&] { LockedWorld(w).settings().islandBlockContacts = mode; });
 }
 int dWorldGetBlockIslandContacts(dWorldID w) {
-  return worldFlag(__func__, w, &ode::BridgeSettings::islandBlockContacts,
-                   &SolverSettings::islandBlockContacts);
+  return guarded(__func__, 0, [&] {
+    const std::optional<int> held = LockedWorld(w).settings().islandBlockContacts;
+    if (held) return *held;
+    const SolverSettings s = currentSettings(w);
+    return s.islandBlockContacts ? 1 : s.islandBlockImpacts ? 2 : 0;
+  });
 }
 // A world's setting of a quantity >= 0 (0: off) held apart from its
 // solver: a bad value is said ("expected <what>") and ignored; unset, the

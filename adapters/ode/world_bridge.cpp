@@ -96,7 +96,10 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   // Set apart from the solver: they hold whichever solver the step uses.
   if (settings_.islandBlockRows) s.islandBlockRows = *settings_.islandBlockRows;
   if (settings_.chainBlocks) s.chainBlocks = *settings_.chainBlocks;
-  if (settings_.islandBlockContacts) s.islandBlockContacts = *settings_.islandBlockContacts;
+  if (settings_.islandBlockContacts) {
+    s.islandBlockContacts = *settings_.islandBlockContacts == 1;
+    s.islandBlockImpacts = *settings_.islandBlockContacts == 2;
+  }
   if (settings_.contactIslandRows) s.contactIslandRows = *settings_.contactIslandRows;
   if (settings_.lightBodyGroups) s.lightBodyGroups = *settings_.lightBodyGroups;
   if (settings_.loadRelativeContacts) s.loadRelativeContacts = *settings_.loadRelativeContacts;

@@ -58,9 +58,10 @@ struct BridgeSettings {
   // Islands larger than that cut into chains (SolverSettings::chainBlocks;
   // unset: the solver's own).
   std::optional<bool> chainBlocks;
-  // Contacts of island blocks in their joints' null space
-  // (SolverSettings::islandBlockContacts; unset: the solver's own).
-  std::optional<bool> islandBlockContacts;
+  // Contacts of island blocks in their joints' null space: 0 never, 1
+  // always (SolverSettings::islandBlockContacts), 2 in steps where one is
+  // an impact (SolverSettings::islandBlockImpacts); unset: the solver's own.
+  std::optional<int> islandBlockContacts;
   // Contact islands as one exact block up to this many normal rows
   // (SolverSettings::contactIslandRows; unset: the solver's own).
   std::optional<int> contactIslandRows;

@@ -83,7 +83,7 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.rowByRow) dWorldSetBlockMode(w, *o.rowByRow ? dBlockModeRowByRow : dBlockModeBlock);
   if (o.islandRows) dWorldSetBlockIslandBlockRows(w, *o.islandRows);
   if (o.chains) dWorldSetBlockChainBlocks(w, *o.chains ? 1 : 0);
-  if (o.islandContacts) dWorldSetBlockIslandContacts(w, *o.islandContacts ? 1 : 0);
+  if (o.islandContacts) dWorldSetBlockIslandContacts(w, *o.islandContacts);
   if (o.lightGroups) dWorldSetBlockLightBodyGroups(w, *o.lightGroups ? 1 : 0);
   if (o.loadContacts) dWorldSetBlockLoadRelativeContacts(w, *o.loadContacts ? 1 : 0);
   if (o.impactDepth) dWorldSetBlockImpactDepth(w, *o.impactDepth);
@@ -312,7 +312,7 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
   } else if (key == "chains") {
     o.chains = flag(text, key, value);
   } else if (key == "island_contacts") {
-    o.islandContacts = flag(text, key, value);
+    o.islandContacts = whole(text, key, value, 0, 2);
   } else if (key == "light_groups") {
     o.lightGroups = flag(text, key, value);
   } else if (key == "load_contacts") {
@@ -370,7 +370,8 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"island_rows", "blockstep: island blocks up to this many joint rows, 0: off"},
           {"chains", "blockstep: larger islands cut into chains of that many rows, 0 or 1"},
           {"island_contacts",
-           "blockstep: island blocks' contacts solved in the null space of their joints, 0 or 1"},
+           "blockstep: island blocks' contacts solved in the null space of their joints, 0, 1 "
+           "or 2 (in steps with an impact)"},
           {"contact_rows",
            "blockstep: contact islands as one exact block up to this many points, 0: off"},
           {"light_groups",

@@ -49,7 +49,7 @@ struct Overrides {
   std::optional<double> sinkingDepth;  // contacts still sinking after the sweeps: exact groups, m
   std::optional<bool> retakeTurns;     // parts that spin a touching body up taken again, shorter
   std::optional<bool> chains;          // larger islands cut into chains of that many rows
-  std::optional<bool> islandContacts;  // island blocks' contacts in their joints' null space
+  std::optional<int> islandContacts;   // island blocks' contacts in their joints' null space
   std::optional<int> contactRows;      // contact islands as one block up to this many points
   std::optional<double> maxTurn;       // rad per sub-step before more sub-steps (0: off)
   std::optional<double> refreshTurn;   // rad before sub-steps prepare rows again (0: always)

@@ -20,9 +20,10 @@ void IslandBlocks::selectIslands(const std::vector<ConstraintBlock>& blocks,
                                  std::int32_t staticBody,
                                  const std::vector<std::int32_t>& islandStart, int firstIsland,
                                  int endIsland, int maxRows, bool cutIntoChains,
-                                 const std::vector<Vec3>* positions, bool withContacts) {
+                                 const std::vector<Vec3>* positions, bool withContacts,
+                                 const std::vector<std::uint8_t>* contactsOf) {
   if (sameAsLastSelection(blocks, staticBody, islandStart, firstIsland, endIsland, maxRows,
-                          cutIntoChains, withContacts))
+                          cutIntoChains, withContacts, contactsOf))
     return;
   wholeIsland_.assign(endIsland, -1);
   islandGroups_.assign(endIsland + 1, 0);
@@ -50,7 +51,8 @@ void IslandBlocks::selectIslands(const std::vector<ConstraintBlock>& blocks,
     // One joint is already one block.
     if (joints_.size() < 2) continue;
     if (n <= maxRows) {
-      addIsland(island, n, blocks, islandStart, staticBody, withContacts);
+      addIsland(island, n, blocks, islandStart, staticBody,
+                withContacts || (contactsOf && (*contactsOf)[island]));
     } else if (cutIntoChains) {
       addChains(maxRows, blocks, staticBody, positions);
     }
@@ -66,13 +68,18 @@ bool IslandBlocks::sameAsLastSelection(const std::vector<ConstraintBlock>& block
                                        std::int32_t staticBody,
                                        const std::vector<std::int32_t>& islandStart,
                                        int firstIsland, int endIsland, int maxRows,
-                                       bool cutIntoChains, bool withContacts) {
+                                       bool cutIntoChains, bool withContacts,
+                                       const std::vector<std::uint8_t>* contactsOf) {
   signature_.clear();
   signature_.insert(signature_.end(),
                     {staticBody, firstIsland, endIsland, maxRows, cutIntoChains ? 1 : 0,
                      withContacts ? 1 : 0, static_cast<std::int32_t>(blocks.size())});
   signature_.insert(signature_.end(), islandStart.begin() + firstIsland,
                     islandStart.begin() + endIsland + 1);
+  if (contactsOf) {
+    for (int island = firstIsland; island < endIsland; ++island)
+      signature_.push_back((*contactsOf)[island]);
+  }
   for (std::int32_t bi = islandStart[firstIsland]; bi < islandStart[endIsland]; ++bi) {
     const ConstraintBlock& blk = blocks[bi];
     signature_.insert(signature_.end(), {blk.bodyA, blk.bodyB, blk.firstRow, blk.equality,

@@ -68,7 +68,8 @@ class IslandBlocks {
   // cut into chains of at most maxRows rows (positions: each solver body's
   // position, to keep the chains straight; a body beyond its end has
   // none). Island i owns blocks [islandStart[i], islandStart[i+1]).
-  // With withContacts, an island that touches something solves the
+  // With withContacts (or, for island i, a non-zero (*contactsOf)[i]),
+  // an island that touches something solves the
   // normal rows of its jointed bodies' contacts in the null space of its
   // equality rows too
   // (SolverSettings::islandBlockContacts), where that costs no more than
@@ -85,7 +86,8 @@ class IslandBlocks {
   void selectIslands(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
                      const std::vector<std::int32_t>& islandStart, int firstIsland, int endIsland,
                      int maxRows, bool cutIntoChains, const std::vector<Vec3>* positions,
-                     bool withContacts = false);
+                     bool withContacts = false,
+                     const std::vector<std::uint8_t>* contactsOf = nullptr);
   // The most a sweep's coupled contacts may cost, in multiply-adds (each
   // row's velocity changes over the island's bodies and its equality
   // impulses): a ragdoll on the ground takes about 700, a hair strand on
@@ -219,7 +221,8 @@ class IslandBlocks {
   // call's structure for the next.
   bool sameAsLastSelection(const std::vector<ConstraintBlock>& blocks, std::int32_t staticBody,
                            const std::vector<std::int32_t>& islandStart, int firstIsland,
-                           int endIsland, int maxRows, bool cutIntoChains, bool withContacts);
+                           int endIsland, int maxRows, bool cutIntoChains, bool withContacts,
+                           const std::vector<std::uint8_t>* contactsOf);
   // The joint blocks of an island that have equality rows, into joints_.
   void collectJoints(int island, const std::vector<ConstraintBlock>& blocks,
                      const std::vector<std::int32_t>& islandStart);

@@ -216,6 +216,15 @@ struct SolverSettings {
   // a sweep keep their manifold blocks. Off by default (README: the
   // ragdolls' joints open wider, and it costs up to 4x at one sub-step).
   bool islandBlockContacts = false;
+  // The same for a step in which one of the island's contacts is an
+  // impact: a point that closes over the sub-step by more than
+  // kImpactCouplingDepth plus twice what gravity alone closes (a body
+  // resting on the ground closes g h^2 a sub-step). Only those steps pay
+  // for the coupling; resting and sliding contacts stay Gauss-Seidel
+  // partners, which warm starting carries. Ignored with
+  // islandBlockContacts.
+  bool islandBlockImpacts = false;
+  static constexpr double kImpactCouplingDepth = 0.001;
   // Solve an island of contacts (no joints, no restitution) with at most
   // this many normal rows as one exact block: an active set of the points
   // that push, solved with the LDL^T of the island's K (contact_island.h).
@@ -329,6 +338,7 @@ struct SolverSettings {
     s.contactIslandRows = kContactIslandRows;
     s.lightBodyGroups = true;
     s.loadRelativeContacts = true;
+    s.islandBlockImpacts = true;
     s.substeps = substeps;
     s.iterations = 1;
     s.relaxIterations = 1;

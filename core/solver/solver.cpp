@@ -790,9 +790,11 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     // Islands and their joints stay the same over a step's sub-steps:
     // choose and order them once.
     if (!islandBlocksSelected_) {
+      const bool impacts = s.islandBlockImpacts && !s.islandBlockContacts;
+      if (impacts) markImpactIslands(h);
       islandBlocks().selectIslands(blocks_, dummy_, islandStart_, islandBegin_, islandEnd_,
                                    s.islandBlockRows, s.chainBlocks, &startX_,
-                                   s.islandBlockContacts);
+                                   s.islandBlockContacts, impacts ? &islandImpact_ : nullptr);
       islandBlocksSelected_ = true;
     }
     if (s.rigidJointSoftness) {
@@ -871,6 +873,31 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
     forEachIndex(
         islandBlocks().count(),
         [&](int k) { islandBlocks().factorOne(k, blocks_, rows_, bodies_); }, 1);
+  }
+}
+
+// Islands with an impact this step (SolverSettings::islandBlockImpacts):
+// a contact point whose gap the sub-step's velocities close by more than
+// kImpactCouplingDepth beyond twice gravity's own g h^2, so that contacts
+// carrying a body at rest (closing g h^2) never count.
+void Solver::markImpactIslands(double h) {
+  islandImpact_.assign(static_cast<std::size_t>(islandEnd_), 0);  // grows only while warming up
+  const double depth = SolverSettings::kImpactCouplingDepth + 2.0 * weightPerMass_ * h * h;
+  for (int island = islandBegin_; island < islandEnd_; ++island) {
+    for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
+      const ConstraintBlock& blk = blocks_[bi];
+      if (!blk.unilateral || blk.contact < 0) continue;
+      const ConstraintRow* rows = &rows_[blk.firstRow];
+      bool impact = false;
+      for (int i = 0; i < blk.equality && !impact; ++i) {
+        const double v = rowVelocity(rows[i], bodies_[blk.bodyA], bodies_[blk.bodyB]);
+        impact = std::min(rows[i].C, 0.0) - (rows[i].C + h * v) > depth;
+      }
+      if (impact) {
+        islandImpact_[island] = 1;
+        break;
+      }
+    }
   }
 }
 

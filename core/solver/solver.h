@@ -136,6 +136,7 @@ class Solver {
   void selectContactIslands(const StepInput& in, const SolverSettings& s, double h);
   bool groupableContact(const StepInput& in, const ConstraintBlock& blk) const;
   bool closesPast(const ConstraintBlock& blk, double h, double depth) const;
+  void markImpactIslands(double h);
   void solveSinkingContacts(const StepInput& in, const SolverSettings& s, double h,
                             StepStats& stats);
   bool carriesLoadThroughJoint(const SolverSettings& s, const ConstraintBlock& blk) const;
@@ -228,6 +229,7 @@ class Solver {
   std::vector<double> islandFullTurn_, bodyFullTurn_, islandLastFullTurn_;
   std::vector<LeverArms> leverArms_;
   std::vector<std::uint8_t> islandTouched_;  // per island: a contact holds it, this step
+  std::vector<std::uint8_t> islandImpact_;   // per island: a contact of it is an impact (prepare)
   std::vector<Vec3> leverAxis_;
   bool turnRateSeen_ = false;    // a step has measured it (a first step has no history)
   double nominalSubstep_ = 0.0;  // s: the step over the settings' sub-steps

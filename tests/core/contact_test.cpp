@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <vector>
 
 #include "compare/native/scenes.h"
 #include "core/body/mass.h"
@@ -401,17 +402,23 @@ TEST(Contact, ALightBodyInALargerIslandPassesItsLoadOnAtOnce) {
 // down but for what the rows' CFM of 1e-5 gives (CFM / h times the
 // impulse: about 0.013 m/s at the contact, as much again at the joints).
 // As a Gauss-Seidel partner of the joints, the point stops the light
-// ball alone and the joints then pull it down with the others.
+// ball alone and the joints then pull it down with the others. Coupled in
+// steps with an impact only (islandBlockImpacts), the landing is coupled
+// as well, and the column standing on the ground is stepped as partners
+// are, bit for bit.
 TEST(Contact, AContactOnAJointedBodyStopsWhatItsJointsCarry) {
+  enum class Coupling { Partners, Always, Impacts };
   struct Column {
     double impulse = 0.0;  // the ground's normal impulse, N s
     double slowest = 0.0;  // the most downward speed after the step, m/s (< 0: down)
+    std::vector<double> state;
   };
-  auto drop = [](bool inNullSpace) {
+  auto drop = [](Coupling coupling, double speed) {
     World world;
     SolverSettings s = SolverSettings::paper(1);
     s.islandBlockRows = SolverSettings::kIslandBlockRows;
-    s.islandBlockContacts = inNullSpace;
+    s.islandBlockContacts = coupling == Coupling::Always;
+    s.islandBlockImpacts = coupling == Coupling::Impacts;
     world.setSettings(s);
     world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
     const double r = 0.05;
@@ -419,7 +426,7 @@ TEST(Contact, AContactOnAJointedBodyStopsWhatItsJointsCarry) {
     BodyId bodies[3];
     for (int i = 0; i < 3; ++i) {
       BodyDesc d = test::sphereBody(Vec3(0, 0, r + 0.2 * i), masses[i], r);
-      d.linearVelocity = Vec3(0, 0, -2.0);
+      d.linearVelocity = Vec3(0, 0, -speed);
       bodies[i] = world.createBody(d);
       world.addShape(Shape::sphere(bodies[i], r));
     }
@@ -435,19 +442,33 @@ TEST(Contact, AContactOnAJointedBodyStopsWhatItsJointsCarry) {
     for (const ContactManifold& m : world.contacts())
       for (int p = 0; p < m.pointCount; ++p)
         c.impulse += m.points[p].stepNormalImpulse;
-    for (BodyId b : bodies)
-      c.slowest = std::min(c.slowest, world.body(b).linearVelocity.z());
+    for (BodyId b : bodies) {
+      const Body& body = world.body(b);
+      c.slowest = std::min(c.slowest, body.linearVelocity.z());
+      for (const Vec3& v : {body.position, body.linearVelocity, body.angularVelocity})
+        c.state.insert(c.state.end(), {v.x(), v.y(), v.z()});
+    }
     return c;
   };
-  const Column coupled = drop(true), partners = drop(false);
+  const Column coupled = drop(Coupling::Always, 2.0), partners = drop(Coupling::Partners, 2.0);
+  const Column impacts = drop(Coupling::Impacts, 2.0);
   const double momentum = 10.1 * (2.0 + 9.81 / 60.0);
   std::printf(
       "0.1 kg under 10 kg, one sweep: in the joints' null space the ground takes %.3f N s "
-      "(the column's momentum %.3f), fastest down %.3f m/s; as a partner %.3f N s, %.3f m/s\n",
-      coupled.impulse, momentum, coupled.slowest, partners.impulse, partners.slowest);
+      "(the column's momentum %.3f), fastest down %.3f m/s; coupled at impacts %.3f N s, "
+      "%.3f m/s; as a partner %.3f N s, %.3f m/s\n",
+      coupled.impulse, momentum, coupled.slowest, impacts.impulse, impacts.slowest,
+      partners.impulse, partners.slowest);
   EXPECT_NEAR(coupled.impulse, momentum, 0.015 * momentum);
   EXPECT_GT(coupled.slowest, -0.03);
+  EXPECT_NEAR(impacts.impulse, momentum, 0.015 * momentum);
+  EXPECT_GT(impacts.slowest, -0.03);
   EXPECT_LT(partners.slowest, -1.0) << "what the setting is for";
+  // Standing still on the ground, its one point closes g h^2 in the step:
+  // no impact, so the step is the partners' own.
+  EXPECT_EQ(drop(Coupling::Impacts, 0.0).state, drop(Coupling::Partners, 0.0).state);
+  EXPECT_NE(drop(Coupling::Always, 0.0).state, drop(Coupling::Partners, 0.0).state)
+      << "the comparison above could not tell";
 }
 
 TEST(Contact, WarmStartingCutsTheSweepsAStackNeeds) {

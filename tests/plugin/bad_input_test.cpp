@@ -175,6 +175,7 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   const int contactRows = dWorldGetBlockContactIslandRows(p.s.world);
   dWorldSetBlockContactIslandRows(p.s.world, -3);
   dWorldSetBlockContactIslandRows(p.s.world, 100000);
+  dWorldSetBlockIslandContacts(p.s.world, 3);
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_EQ(contactRows, 128);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockContactIslandRows(p.s.world), contactRows);
@@ -223,9 +224,12 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   EXPECT_EQ(dWorldGetBlockProjectionTolerance(p.s.world), projectionTolerance);
   dWorldSetBlockProjectionTolerance(p.s.world, 5e-4);
   EXPECT_EQ(dWorldGetBlockProjectionTolerance(p.s.world), 5e-4);
-  EXPECT_EQ(dWorldGetBlockIslandContacts(p.s.world), 0);  // off in every preset
+  EXPECT_NE(err.find("dWorldSetBlockIslandContacts(3): expected 0 to 2"), std::string::npos) << err;
+  EXPECT_EQ(dWorldGetBlockIslandContacts(p.s.world), 2);  // the sub-stepped preset's: at impacts
   dWorldSetBlockIslandContacts(p.s.world, 1);
   EXPECT_EQ(dWorldGetBlockIslandContacts(p.s.world), 1);
+  dWorldSetBlockIslandContacts(p.s.world, 0);
+  EXPECT_EQ(dWorldGetBlockIslandContacts(p.s.world), 0);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 1);  // the sub-stepped preset's
   dWorldSetBlockRetakeTurns(p.s.world, 0);
   EXPECT_EQ(dWorldGetBlockRetakeTurns(p.s.world), 0);

@@ -142,10 +142,12 @@ ODE_API int dWorldGetBlockChainBlocks(dWorldID w);
  * something solves the normals of its jointed bodies' contacts in the
  * null space of those rows, with its limits and motors (1): a contact then stops
  * what the joints carry with its body, not only the body. Or its
- * contacts stay Gauss-Seidel partners of the joints (0, the default).
- * Islands where that would cost too much a sweep keep the latter.
+ * contacts stay Gauss-Seidel partners of the joints (0, the default). Or
+ * the former only in steps where one of its contacts is an impact, a
+ * point closing faster than gravity alone closes it (2): a landing, not
+ * a rest. Islands where that would cost too much a sweep keep the latter.
  * Holds under every solver. BLOCKSTEP_ISLAND_CONTACTS. */
-ODE_API void dWorldSetBlockIslandContacts(dWorldID w, int on);
+ODE_API void dWorldSetBlockIslandContacts(dWorldID w, int mode);
 ODE_API int dWorldGetBlockIslandContacts(dWorldID w);
 /* More sub-steps while a jointed body turns fast: a step runs as many as
  * keep the fastest turn of a constrained body (over the last step) within
