@@ -879,14 +879,30 @@ void Solver::prepare(const StepInput& in, const SolverSettings& s, double h) {
 // Islands with an impact this step (SolverSettings::islandBlockImpacts):
 // a contact point whose gap the sub-step's velocities close by more than
 // kImpactCouplingDepth beyond twice gravity's own g h^2, so that contacts
-// carrying a body at rest (closing g h^2) never count.
+// carrying a body at rest (closing g h^2) never count. Only contacts
+// between the island's jointed bodies and the world or one another: a
+// free body landing on the joints (the bridge's 100 kg crate on its 1 kg
+// planks) stays a Gauss-Seidel partner, as it gained energy coupled
+// (median rise over 8 starts at 10 sub-steps 1.0 -> 2.0 kJ, one start 16
+// kJ).
 void Solver::markImpactIslands(double h) {
   islandImpact_.assign(static_cast<std::size_t>(islandEnd_), 0);  // grows only while warming up
+  impactJointed_.assign(bodies_.size(), 0);
   const double depth = SolverSettings::kImpactCouplingDepth + 2.0 * weightPerMass_ * h * h;
   for (int island = islandBegin_; island < islandEnd_; ++island) {
-    for (std::int32_t bi = islandStart_[island]; bi < islandStart_[island + 1]; ++bi) {
+    const std::int32_t begin = islandStart_[island], end = islandStart_[island + 1];
+    for (std::int32_t bi = begin; bi < end; ++bi) {
+      const ConstraintBlock& blk = blocks_[bi];
+      if (!blk.unilateral) impactJointed_[blk.bodyA] = impactJointed_[blk.bodyB] = 1;
+    }
+    impactJointed_[dummy_] = 1;  // the world
+    auto jointedOrStatic = [&](std::int32_t body) {
+      return impactJointed_[body] != 0 || bodies_[body].invMass == 0.0;
+    };
+    for (std::int32_t bi = begin; bi < end; ++bi) {
       const ConstraintBlock& blk = blocks_[bi];
       if (!blk.unilateral || blk.contact < 0) continue;
+      if (!jointedOrStatic(blk.bodyA) || !jointedOrStatic(blk.bodyB)) continue;
       const ConstraintRow* rows = &rows_[blk.firstRow];
       bool impact = false;
       for (int i = 0; i < blk.equality && !impact; ++i) {

@@ -230,6 +230,8 @@ class Solver {
   std::vector<LeverArms> leverArms_;
   std::vector<std::uint8_t> islandTouched_;  // per island: a contact holds it, this step
   std::vector<std::uint8_t> islandImpact_;   // per island: a contact of it is an impact (prepare)
+  std::vector<std::uint8_t>
+      impactJointed_;  // per solver body: a joint holds it (markImpactIslands)
   std::vector<Vec3> leverAxis_;
   bool turnRateSeen_ = false;    // a step has measured it (a first step has no history)
   double nominalSubstep_ = 0.0;  // s: the step over the settings' sub-steps

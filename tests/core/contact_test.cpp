@@ -404,8 +404,8 @@ TEST(Contact, ALightBodyInALargerIslandPassesItsLoadOnAtOnce) {
 // As a Gauss-Seidel partner of the joints, the point stops the light
 // ball alone and the joints then pull it down with the others. Coupled in
 // steps with an impact only (islandBlockImpacts), the landing is coupled
-// as well, and the column standing on the ground is stepped as partners
-// are, bit for bit.
+// as well, and the column standing on the ground, or hit by a free ball,
+// is stepped as partners are, bit for bit.
 TEST(Contact, AContactOnAJointedBodyStopsWhatItsJointsCarry) {
   enum class Coupling { Partners, Always, Impacts };
   struct Column {
@@ -413,7 +413,9 @@ TEST(Contact, AContactOnAJointedBodyStopsWhatItsJointsCarry) {
     double slowest = 0.0;  // the most downward speed after the step, m/s (< 0: down)
     std::vector<double> state;
   };
-  auto drop = [](Coupling coupling, double speed) {
+  // freeSpeed >= 0: a free 5 kg ball, touching the top ball, falls on the
+  // column at that speed.
+  auto drop = [](Coupling coupling, double speed, double freeSpeed = -1.0) {
     World world;
     SolverSettings s = SolverSettings::paper(1);
     s.islandBlockRows = SolverSettings::kIslandBlockRows;
@@ -436,6 +438,11 @@ TEST(Contact, AContactOnAJointedBodyStopsWhatItsJointsCarry) {
       ball.common.bodyB = bodies[i + 1];
       ball.anchor = Vec3(0, 0, r + 0.2 * i + 0.1);
       world.createJoint(ball);
+    }
+    if (freeSpeed >= 0.0) {
+      BodyDesc d = test::sphereBody(Vec3(0, 0, 3 * r + 0.4), 5.0, r);
+      d.linearVelocity = Vec3(0, 0, -freeSpeed);
+      world.addShape(Shape::sphere(world.createBody(d), r));
     }
     world.step(1.0 / 60.0);
     Column c;
@@ -468,6 +475,11 @@ TEST(Contact, AContactOnAJointedBodyStopsWhatItsJointsCarry) {
   // no impact, so the step is the partners' own.
   EXPECT_EQ(drop(Coupling::Impacts, 0.0).state, drop(Coupling::Partners, 0.0).state);
   EXPECT_NE(drop(Coupling::Always, 0.0).state, drop(Coupling::Partners, 0.0).state)
+      << "the comparison above could not tell";
+  // A free body landing on the joints is no impact of theirs: coupled, the
+  // bridge's 100 kg crate on its 1 kg planks gained energy.
+  EXPECT_EQ(drop(Coupling::Impacts, 0.0, 2.0).state, drop(Coupling::Partners, 0.0, 2.0).state);
+  EXPECT_NE(drop(Coupling::Always, 0.0, 2.0).state, drop(Coupling::Partners, 0.0, 2.0).state)
       << "the comparison above could not tell";
 }
 
