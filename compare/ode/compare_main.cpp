@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -41,6 +42,18 @@ void writeCsv(const std::filesystem::path& path, const RunResult& r) {
         << ',' << rec.contacts << ',' << rec.kineticEnergy << ',' << rec.potentialEnergy << ','
         << rec.handedToOde << ',' << rec.heldPenetration << ',' << rec.foundPenetration << '\n';
   }
+}
+
+// The process's peak resident size (VmHWM), kB; 0 where /proc has none.
+// Not getrusage's ru_maxrss: Linux counts in it the image of the process
+// that forked this one before exec (a Python script's 12 to 100 MB).
+long peakResidentKb() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmHWM:", 0) == 0) return std::atol(line.c_str() + 6);
+  }
+  return 0;
 }
 
 nlohmann::json summary(const RunResult& r, double quickSolveMs) {
@@ -738,6 +751,10 @@ int main(int argc, char** argv) {
   if (!out.empty()) {
     std::ofstream json(std::filesystem::path(out) / "summary.json");
     json << all.dump(2) << '\n';
+    // This process's peak resident size (runs in processes of their own,
+    // --jobs > 1, are not in it): compare/report/scaling.py reads it.
+    std::ofstream(std::filesystem::path(out) / "process.json")
+        << nlohmann::json{{"peak_resident_kb", peakResidentKb()}, {"jobs", jobs}}.dump(2) << '\n';
   }
   dCloseODE();
   return writeReport(0);
