@@ -136,6 +136,7 @@ class Solver {
   void selectContactIslands(const StepInput& in, const SolverSettings& s, double h);
   bool groupableContact(const StepInput& in, const ConstraintBlock& blk) const;
   bool closesPast(const ConstraintBlock& blk, double h, double depth) const;
+  bool closesBy(const ConstraintBlock& blk, double h, double depth) const;
   void markImpactIslands(double h);
   void solveSinkingContacts(const StepInput& in, const SolverSettings& s, double h,
                             StepStats& stats);
