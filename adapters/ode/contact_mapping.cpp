@@ -16,7 +16,15 @@ WorldContactParams WorldContactParams::of(dWorldID world) {
 MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
                          const WorldContactParams& world, double radius1, double radius2) {
   MappedContact out;
-  ContactManifold& m = out.manifold;
+  out.unsupported =
+      mapContactInto(contact, body1, body2, world, radius1, radius2, out.manifold, out.clamped);
+  return out;
+}
+
+const char* mapContactInto(const dContact& contact, BodyId body1, BodyId body2,
+                           const WorldContactParams& world, double radius1, double radius2,
+                           ContactManifold& m, unsigned& clamped) {
+  const char* unsupported = nullptr;
   const dSurfaceParameters& s = contact.surface;
   const int mode = s.mode;
 
@@ -41,7 +49,7 @@ MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
     if (c.restitution < 0.0 || c.restitution > 1.0 || c.restitutionThreshold < 0.0) {
       c.restitution = std::clamp(c.restitution, 0.0, 1.0);
       c.restitutionThreshold = std::max(c.restitutionThreshold, 0.0);
-      out.clamped |= kClampedContactBounce;
+      clamped |= kClampedContactBounce;
     }
   } else {
     c.restitution = 0.0;
@@ -51,7 +59,7 @@ MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
   const bool approx1 = (mode & dContactApprox1_1) != 0;
   const bool approx2 = (mode & dContactApprox1_2) != 0;
   if (approx1 != approx2) {
-    out.unsupported = "dContactApprox1_1 without dContactApprox1_2 (or the reverse)";
+    unsupported = "dContactApprox1_1 without dContactApprox1_2 (or the reverse)";
   }
   c.friction = approx1 ? ContactSurface::Friction::Box : ContactSurface::Friction::Force;
   c.mu = s.mu;
@@ -68,14 +76,14 @@ MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
     const double rho = s.rho;
     const double rho2 = (mode & dContactAxisDep) ? s.rho2 : rho;
     const double rhoN = (mode & dContactAxisDep) ? s.rhoN : rho;
-    if (rho2 != rho) out.unsupported = "different rolling friction about the two tangents";
+    if (rho2 != rho) unsupported = "different rolling friction about the two tangents";
     if (!(mode & dContactApprox1_N) || !approx1) {
-      out.unsupported = "rolling friction as a fixed torque (without dContactApprox1)";
+      unsupported = "rolling friction as a fixed torque (without dContactApprox1)";
     }
     c.rolling = rho;
     c.spinning = rhoN;
   }
-  return out;
+  return unsupported;
 }
 
 namespace {
@@ -104,7 +112,6 @@ void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactMa
 void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactManifold>& out,
                    ContactGrouping& scratch) {
   out.clear();
-  scratch.firstPoint.clear();
   // The points by body pair, each pair's in ODE's order: a point can only
   // join a manifold of its own pair, so each pair is grouped alone.
   auto& byPair = scratch.byPair;
@@ -115,41 +122,61 @@ void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactMa
     byPair.emplace_back(std::uint64_t{a} << 32 | b, static_cast<std::int32_t>(k));
   }
   std::sort(byPair.begin(), byPair.end());
+  // Which input each manifold is made of, decided before any is copied:
+  // each is then written once, in the order of its first point.
+  auto& made = scratch.manifolds;
+  made.clear();
   for (std::size_t begin = 0; begin < byPair.size();) {
     std::size_t end = begin;
     while (end < byPair.size() && byPair[end].first == byPair[begin].first)
       ++end;
     scratch.pairManifolds.clear();
     for (std::size_t k = begin; k < end; ++k) {
-      const ContactManifold& c = in[byPair[k].second];
-      ContactManifold* target = nullptr;
-      for (const std::int32_t index : scratch.pairManifolds) {
-        ContactManifold& m = out[index];
+      const std::int32_t index = byPair[k].second;
+      const ContactManifold& c = in[index];
+      ContactGrouping::Made* target = nullptr;
+      for (const std::int32_t slot : scratch.pairManifolds) {
+        ContactGrouping::Made& m = made[slot];
+        const ContactManifold& first = in[m.inputs[0]];
         // Rolling and spinning act about the manifold's one normal.
-        const bool along = m.normal.dot(c.normal) > 0.999 ||
+        const bool along = first.normal.dot(c.normal) > 0.999 ||
                            (c.surface.rolling == 0.0 && c.surface.spinning == 0.0);
-        if (m.pointCount < kMaxManifoldPoints && along && sameSurface(m.surface, c.surface)) {
+        if (m.pointCount < kMaxManifoldPoints && along && sameSurface(first.surface, c.surface)) {
           target = &m;
           break;
         }
       }
       if (!target) {
-        scratch.firstPoint.emplace_back(byPair[k].second, static_cast<std::int32_t>(out.size()));
-        scratch.pairManifolds.push_back(static_cast<std::int32_t>(out.size()));
-        out.push_back(c);
+        scratch.pairManifolds.push_back(static_cast<std::int32_t>(made.size()));
+        ContactGrouping::Made& m = made.emplace_back();
+        m.inputs[0] = index;
+        m.inputCount = 1;
+        m.pointCount = c.pointCount;
         continue;
       }
-      for (int i = 0; i < c.pointCount && target->pointCount < kMaxManifoldPoints; ++i)
-        target->points[target->pointCount++] = c.points[i];
+      // Each input that joins brings at least one point while there is
+      // room, so a manifold takes at most kMaxManifoldPoints inputs with
+      // points (one without points brings nothing).
+      if (c.pointCount > 0) {
+        target->inputs[target->inputCount++] = index;
+        target->pointCount = std::min(target->pointCount + c.pointCount, kMaxManifoldPoints);
+      }
     }
     begin = end;
   }
-  // Back in the order of their first points, as ODE made them.
-  std::sort(scratch.firstPoint.begin(), scratch.firstPoint.end());
-  scratch.ordered.clear();
-  for (const auto& [point, index] : scratch.firstPoint)
-    scratch.ordered.push_back(out[index]);
-  out.swap(scratch.ordered);
+  // In the order of their first points, as ODE made them.
+  std::sort(made.begin(), made.end(),
+            [](const ContactGrouping::Made& x, const ContactGrouping::Made& y) {
+              return x.inputs[0] < y.inputs[0];
+            });
+  for (const ContactGrouping::Made& m : made) {
+    ContactManifold& target = out.emplace_back(in[m.inputs[0]]);
+    for (int j = 1; j < m.inputCount; ++j) {
+      const ContactManifold& c = in[m.inputs[j]];
+      for (int i = 0; i < c.pointCount && target.pointCount < kMaxManifoldPoints; ++i)
+        target.points[target.pointCount++] = c.points[i];
+    }
+  }
 }
 
 }  // namespace blockstep::ode

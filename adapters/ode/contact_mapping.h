@@ -50,6 +50,12 @@ struct MappedContact {
 MappedContact mapContact(const dContact& contact, BodyId body1, BodyId body2,
                          const WorldContactParams& world, double radius1 = 0.0,
                          double radius2 = 0.0);
+// The same written into `m`, a default-made manifold (contacts come every
+// step: no copy of the manifold), adding to `clamped`; returns what
+// MappedContact::unsupported would hold.
+const char* mapContactInto(const dContact& contact, BodyId body1, BodyId body2,
+                           const WorldContactParams& world, double radius1, double radius2,
+                           ContactManifold& m, unsigned& clamped);
 
 // ODE makes one contact joint per point. Points of the same body pair and
 // the same surface are one manifold for the core (up to four points, each
@@ -68,10 +74,15 @@ void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactMa
 // so far for each took 12% of its step.
 struct ContactGrouping {
   std::vector<std::pair<std::uint64_t, std::int32_t>> byPair;  // (body pair, point)
-  std::vector<std::int32_t> pairManifolds;                     // the current pair's, in `out`
-  // Each manifold made, by the point it began with; and `out` in order.
-  std::vector<std::pair<std::int32_t, std::int32_t>> firstPoint;
-  std::vector<ContactManifold> ordered;
+  std::vector<std::int32_t> pairManifolds;                     // the current pair's, in `manifolds`
+  // Each manifold to make: the inputs whose points it takes, the one it
+  // began with first (its body pair, normal and surface).
+  struct Made {
+    std::int32_t inputs[kMaxManifoldPoints] = {};
+    int inputCount = 0;
+    int pointCount = 0;
+  };
+  std::vector<Made> manifolds;
 };
 void groupContacts(const std::vector<ContactManifold>& in, std::vector<ContactManifold>& out,
                    ContactGrouping& scratch);

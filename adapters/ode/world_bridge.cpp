@@ -292,20 +292,20 @@ bool WorldBridge::readAll(const WorldRecord& record) {
         else if (rec->geomBody[k] == b2)
           radius[1] = rec->geomRoundness[k];
       }
-      const MappedContact mapped = mapContact(rec->contact, coreBody(b1), coreBody(b2),
-                                              contactParams_, radius[0], radius[1]);
-      if (mapped.unsupported) {
-        message_ =
-            std::string("ODE contact mode without a blockstep mapping: ") + mapped.unsupported;
+      ContactManifold& mapped = pointContacts_.emplace_back();
+      unsigned clamped = 0;
+      if (const char* unsupported = mapContactInto(rec->contact, coreBody(b1), coreBody(b2),
+                                                   contactParams_, radius[0], radius[1], mapped,
+                                                   clamped)) {
+        message_ = std::string("ODE contact mode without a blockstep mapping: ") + unsupported;
         return false;
       }
-      clamped_ |= mapped.clamped;
-      pointContacts_.push_back(mapped.manifold);
+      clamped_ |= clamped;
       if (dJointFeedback* fb = dJointGetFeedback(j)) {
-        contactFeedback_.push_back({fb, b1, b2, mapped.manifold.bodyB, mapped.manifold.bodyA,
-                                    mapped.manifold.points[0].position});
+        contactFeedback_.push_back(
+            {fb, b1, b2, mapped.bodyB, mapped.bodyA, mapped.points[0].position});
       }
-      Softness& soft = pointContacts_.back().surface.softness;
+      Softness& soft = mapped.surface.softness;
       soft = contactSoftness(soft.erp, soft.cfm);
       contactBodies_.push_back({b1, b2});
       continue;

@@ -94,7 +94,16 @@ void World::removeShape(ShapeId id) {
 }
 
 void World::addContact(const ContactManifold& manifold) {
-  ContactManifold m = manifold;
+  // Checked and normalized where it is kept (copied once: contacts come
+  // every step), and taken back out if it is refused.
+  ContactManifold& m = contacts_.emplace_back(manifold);
+  struct Refused {
+    std::vector<ContactManifold>& contacts;
+    bool kept = false;
+    ~Refused() {
+      if (!kept) contacts.pop_back();
+    }
+  } refused{contacts_};
   // Named only when there is an error: contacts are added every step.
   auto who = [&m] {
     return "contact between " + ownerName(m.bodyA) + " and " + ownerName(m.bodyB);
@@ -146,7 +155,7 @@ void World::addContact(const ContactManifold& manifold) {
   }
   m.rollingImpulse[0] = m.rollingImpulse[1] = m.rollingImpulse[2] = 0.0;
   m.warmStepSize = 0.0;
-  contacts_.push_back(m);
+  refused.kept = true;
 }
 
 void World::setContactMatchDistance(double d) {
