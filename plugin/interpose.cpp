@@ -71,6 +71,11 @@ bool goodMass(const dMass* m) {
   return true;
 }
 
+// A setter of the joint ran: the bridge reads it again at the next step.
+void jointChanged(dJointID j) {
+  guarded("jointChanged", [&] { Registry::instance().jointChanged(j); });
+}
+
 // Damping and speed limits: a NaN (or an infinite damping scale) would
 // turn every velocity of the body or world into NaN at the next step.
 bool goodValue(const char* function, dReal v, bool infinityAllowed) {
@@ -322,13 +327,16 @@ void dJointAttach(dJointID j, dBodyID b1, dBodyID b2) {
     return;
   }
   real_dJointAttach(j, b1, b2);
+  jointChanged(j);
 }
 
 // Axis and point setters ODE would abort on (zero axis) or take as NaN.
-#define BLOCKSTEP_CHECKED_SETTER(name, check)           \
-  void name(dJointID j, dReal x, dReal y, dReal z) {    \
-    BLOCKSTEP_REAL(name);                               \
-    if (check(#name, x, y, z)) real_##name(j, x, y, z); \
+#define BLOCKSTEP_CHECKED_SETTER(name, check)        \
+  void name(dJointID j, dReal x, dReal y, dReal z) { \
+    BLOCKSTEP_REAL(name);                            \
+    if (!check(#name, x, y, z)) return;              \
+    real_##name(j, x, y, z);                         \
+    jointChanged(j);                                 \
   }
 BLOCKSTEP_CHECKED_SETTER(dJointSetHingeAxis, goodAxis)
 BLOCKSTEP_CHECKED_SETTER(dJointSetSliderAxis, goodAxis)
@@ -366,6 +374,7 @@ void dJointSetLMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal 
   if (!goodAxis("dJointSetLMotorAxis", x, y, z)) return;
   real_dJointSetLMotorAxis(j, anum, rel, x, y, z);
   guarded(__func__, [&] { Registry::instance().lmotorAxisSet(j, anum, rel); });
+  jointChanged(j);
 }
 
 void dJointSetAMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal z) {
@@ -374,12 +383,14 @@ void dJointSetAMotorAxis(dJointID j, int anum, int rel, dReal x, dReal y, dReal 
   real_dJointSetAMotorAxis(j, anum, rel, x, y, z);
   const double world[3] = {x, y, z};
   guarded(__func__, [&] { Registry::instance().amotorAxisSet(j, anum, rel, world); });
+  jointChanged(j);
 }
 
 void dJointSetAMotorMode(dJointID j, int mode) {
   BLOCKSTEP_REAL(dJointSetAMotorMode);
   real_dJointSetAMotorMode(j, mode);
   guarded(__func__, [&] { Registry::instance().amotorModeSet(j); });
+  jointChanged(j);
 }
 
 // Plane2D's motors have setters only; the registry keeps what they set.
@@ -388,6 +399,7 @@ void dJointSetAMotorMode(dJointID j, int mode) {
     BLOCKSTEP_REAL(name);                                                                         \
     real_##name(j, parameter, value);                                                             \
     guarded(__func__, [&] { Registry::instance().plane2dParamSet(j, motor, parameter, value); }); \
+    jointChanged(j);                                                                              \
   }
 BLOCKSTEP_PLANE2D_PARAM(dJointSetPlane2DXParam, 0)
 BLOCKSTEP_PLANE2D_PARAM(dJointSetPlane2DYParam, 1)
@@ -399,7 +411,82 @@ void dJointSetHinge2Axes(dJointID j, const dReal* axis1, const dReal* axis2) {
   if (axis1 && !goodAxis("dJointSetHinge2Axes (axis1)", axis1[0], axis1[1], axis1[2])) return;
   if (axis2 && !goodAxis("dJointSetHinge2Axes (axis2)", axis2[0], axis2[1], axis2[2])) return;
   real_dJointSetHinge2Axes(j, axis1, axis2);
+  jointChanged(j);
 }
+
+// ODE's other joint setters: each is passed on and counted, so the bridge
+// reads the joint again at the next step (JointRecord::changes). Every
+// dJointSet* of ODE's API is interposed here or above
+// (PluginJointCache.EverySetterOfOdesApiIsCounted checks the header).
+#define BLOCKSTEP_COUNTED_SETTER(name, params, args) \
+  void name params {                                 \
+    BLOCKSTEP_REAL(name);                            \
+    real_##name args;                                \
+    jointChanged(j);                                 \
+  }
+#define BLOCKSTEP_COUNTED_PARAM(name) \
+  BLOCKSTEP_COUNTED_SETTER(name, (dJointID j, int parameter, dReal value), (j, parameter, value))
+BLOCKSTEP_COUNTED_PARAM(dJointSetBallParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetHingeParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetSliderParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetFixedParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetUniversalParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetHinge2Param)
+BLOCKSTEP_COUNTED_PARAM(dJointSetPRParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetPUParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetPistonParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetAMotorParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetLMotorParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetDBallParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetDHingeParam)
+BLOCKSTEP_COUNTED_PARAM(dJointSetTransmissionParam)
+#undef BLOCKSTEP_COUNTED_PARAM
+#define BLOCKSTEP_COUNTED_POINT(name) \
+  BLOCKSTEP_COUNTED_SETTER(name, (dJointID j, dReal x, dReal y, dReal z), (j, x, y, z))
+BLOCKSTEP_COUNTED_POINT(dJointSetPUAxisP)
+BLOCKSTEP_COUNTED_POINT(dJointSetTransmissionAnchor1)
+BLOCKSTEP_COUNTED_POINT(dJointSetTransmissionAnchor2)
+BLOCKSTEP_COUNTED_POINT(dJointSetTransmissionAxis)
+BLOCKSTEP_COUNTED_POINT(dJointSetTransmissionAxis1)
+BLOCKSTEP_COUNTED_POINT(dJointSetTransmissionAxis2)
+#undef BLOCKSTEP_COUNTED_POINT
+#define BLOCKSTEP_COUNTED_DELTA(name)                                                             \
+  BLOCKSTEP_COUNTED_SETTER(name,                                                                  \
+                           (dJointID j, dReal x, dReal y, dReal z, dReal dx, dReal dy, dReal dz), \
+                           (j, x, y, z, dx, dy, dz))
+BLOCKSTEP_COUNTED_DELTA(dJointSetHingeAnchorDelta)
+BLOCKSTEP_COUNTED_DELTA(dJointSetSliderAxisDelta)
+BLOCKSTEP_COUNTED_DELTA(dJointSetPUAnchorOffset)
+BLOCKSTEP_COUNTED_DELTA(dJointSetPistonAnchorOffset)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+BLOCKSTEP_COUNTED_DELTA(dJointSetPUAnchorDelta)
+BLOCKSTEP_COUNTED_DELTA(dJointSetPistonAxisDelta)
+#pragma GCC diagnostic pop
+#undef BLOCKSTEP_COUNTED_DELTA
+#define BLOCKSTEP_COUNTED_VALUE(name, type) \
+  BLOCKSTEP_COUNTED_SETTER(name, (dJointID j, type value), (j, value))
+BLOCKSTEP_COUNTED_VALUE(dJointSetAMotorNumAxes, int)
+BLOCKSTEP_COUNTED_VALUE(dJointSetLMotorNumAxes, int)
+BLOCKSTEP_COUNTED_VALUE(dJointSetDBallDistance, dReal)
+BLOCKSTEP_COUNTED_VALUE(dJointSetTransmissionBacklash, dReal)
+BLOCKSTEP_COUNTED_VALUE(dJointSetTransmissionMode, int)
+BLOCKSTEP_COUNTED_VALUE(dJointSetTransmissionRadius1, dReal)
+BLOCKSTEP_COUNTED_VALUE(dJointSetTransmissionRadius2, dReal)
+BLOCKSTEP_COUNTED_VALUE(dJointSetTransmissionRatio, dReal)
+#undef BLOCKSTEP_COUNTED_VALUE
+BLOCKSTEP_COUNTED_SETTER(dJointSetAMotorAngle, (dJointID j, int anum, dReal angle),
+                         (j, anum, angle))
+BLOCKSTEP_COUNTED_SETTER(dJointSetFixed, (dJointID j), (j))
+BLOCKSTEP_COUNTED_SETTER(dJointSetHingeAxisOffset,
+                         (dJointID j, dReal x, dReal y, dReal z, dReal angle), (j, x, y, z, angle))
+BLOCKSTEP_COUNTED_SETTER(dJointSetUniversalAxis1Offset,
+                         (dJointID j, dReal x, dReal y, dReal z, dReal offset1, dReal offset2),
+                         (j, x, y, z, offset1, offset2))
+BLOCKSTEP_COUNTED_SETTER(dJointSetUniversalAxis2Offset,
+                         (dJointID j, dReal x, dReal y, dReal z, dReal offset1, dReal offset2),
+                         (j, x, y, z, offset1, offset2))
+#undef BLOCKSTEP_COUNTED_SETTER
 
 // In Euler mode ODE computes the AMotor's angles while stepping: from the
 // core when blockstep stepped the world. User mode angles are the

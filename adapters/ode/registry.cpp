@@ -228,6 +228,10 @@ void Registry::withJoint(dJointID joint, F&& f) {
   if (JointRecord* r = w->joint(joint)) f(*r);
 }
 
+void Registry::jointChanged(dJointID joint) {
+  withJoint(joint, [](JointRecord& r) { ++r.changes; });
+}
+
 void Registry::lmotorAxisSet(dJointID joint, int axis, int rel) {
   if (axis < 0 || axis > 2) return;
   withJoint(joint, [&](JointRecord& r) { r.lmotorRel[axis] = rel; });

@@ -48,6 +48,10 @@ struct JointRecord {
   // (reference1 in body1's frame, reference2 in body2's or the world's).
   double amotorAxis[3][3] = {};
   double eulerRef1[3] = {}, eulerRef2[3] = {};
+  // Counts the calls of the joint's setters (every dJointSet* of ODE's
+  // API, dJointAttach): the bridge reads a joint again only when this
+  // moved since its last read (WorldBridge::readAll).
+  std::uint32_t changes = 0;
 };
 
 using MovedCallback = void (*)(dBodyID);
@@ -101,6 +105,8 @@ class Registry {
   void plane2dParamSet(dJointID joint, int motor, int parameter, double value);
   void amotorAxisSet(dJointID joint, int axis, int rel, const double world[3]);
   void amotorModeSet(dJointID joint);
+  // A setter of the joint was called (JointRecord::changes).
+  void jointChanged(dJointID joint);
   void movedCallbackSet(dBodyID body, MovedCallback callback);
 
   // The world's record (lock its mutex to use it), nullptr for a world

@@ -35,6 +35,30 @@ std::string jointLabel(dJointID j) {
 }
 
 // A vector in the frame of `body` (the world frame for 0).
+// Joint kinds whose read (JointRead) depends on nothing but what the
+// program set through setters, the world's ERP and CFM and the step: the
+// bridge need not read them again while those stay. AMotor (Euler angles,
+// axes in moving frames), LMotor, Plane2D and transmissions read state of
+// the step or of the registry, and are read every step.
+bool readsOnlySetters(int type) {
+  switch (type) {
+    case dJointTypeBall:
+    case dJointTypeHinge:
+    case dJointTypeSlider:
+    case dJointTypeFixed:
+    case dJointTypeUniversal:
+    case dJointTypeHinge2:
+    case dJointTypePiston:
+    case dJointTypePR:
+    case dJointTypePU:
+    case dJointTypeDBall:
+    case dJointTypeDHinge:
+      return true;
+    default:
+      return false;
+  }
+}
+
 Vec3 inBodyFrame(dBodyID body, const Vec3& v, bool point) {
   if (!body) return v;
   const dReal* q = dBodyGetQuaternion(body);
@@ -272,14 +296,18 @@ bool WorldBridge::readAll(const WorldRecord& record) {
   params.clamped = &clamped_;
 
   reads_.resize(record.joints.size());
+  readStates_.resize(record.joints.size());
+  readKey_ = {params.erp, params.cfm, step_};
   pointContacts_.clear();
   contactBodies_.clear();
   contactFeedback_.clear();
   for (std::size_t i = 0; i < record.joints.size(); ++i) {
     const dJointID j = record.joints[i];
     JointRead& read = reads_[i];
+    ReadState& state = readStates_[i];
     read.hasRows = false;
     read.unsupported = nullptr;
+    state = ReadState{};
     const dBodyID b1 = dJointGetBody(j, 0), b2 = dJointGetBody(j, 1);
     if ((!b1 && !b2) || !dJointIsEnabled(j)) continue;
     const JointRecord* rec = record.joint(j);
@@ -294,9 +322,9 @@ bool WorldBridge::readAll(const WorldRecord& record) {
       }
       ContactManifold& mapped = pointContacts_.emplace_back();
       unsigned clamped = 0;
-      if (const char* unsupported = mapContactInto(rec->contact, coreBody(b1), coreBody(b2),
-                                                   contactParams_, radius[0], radius[1], mapped,
-                                                   clamped)) {
+      if (const char* unsupported =
+              mapContactInto(rec->contact, coreBody(b1), coreBody(b2), contactParams_, radius[0],
+                             radius[1], mapped, clamped)) {
         message_ = std::string("ODE contact mode without a blockstep mapping: ") + unsupported;
         return false;
       }
@@ -310,6 +338,22 @@ bool WorldBridge::readAll(const WorldRecord& record) {
       contactBodies_.push_back({b1, b2});
       continue;
     }
+    if (rec) {
+      state.counted = true;
+      state.changes = rec->changes;
+      // Unchanged since the core joint was made or updated from it: no
+      // setter ran, the world's ERP, CFM and step are the same, and its
+      // kind reads nothing but what setters set (and the bodies' poses,
+      // which the core joint follows itself).
+      const MappedJoint* m = joints_.find(j);
+      if (m && m->id >= 0 && m->readValid && m->readChanges == rec->changes &&
+          m->readKey == readKey_ && m->body1 == b1 && m->body2 == b2 && readsOnlySetters(m->type)) {
+        read.hasRows = true;
+        state.unchanged = true;
+        clamped_ |= m->readClamped;
+        continue;
+      }
+    }
     JointSetOnly setOnly;
     if (rec) {
       for (int k = 0; k < 3; ++k) {
@@ -322,7 +366,9 @@ bool WorldBridge::readAll(const WorldRecord& record) {
       setOnly.eulerRef1 = Vec3(rec->eulerRef1[0], rec->eulerRef1[1], rec->eulerRef1[2]);
       setOnly.eulerRef2 = Vec3(rec->eulerRef2[0], rec->eulerRef2[1], rec->eulerRef2[2]);
     }
+    const unsigned clampedBefore = clamped_;
     readJoint(j, coreBody(b1), coreBody(b2), params, setOnly, read);
+    state.clamped = clamped_ & ~clampedBefore;
     if (read.unsupported) {
       message_ =
           std::string("ODE ") + odeJointTypeName(dJointGetType(j)) + " joint: " + read.unsupported;
@@ -544,6 +590,12 @@ void WorldBridge::syncJoints(const WorldRecord& record) {
       continue;
     }
     MappedJoint& m = found ? *found : joints_[j];
+    const ReadState& state = readStates_[i];
+    if (state.unchanged) {
+      core_.setJointEnabled(m.id, true);
+      continue;
+    }
+    m.readValid = false;
     if (m.id >= 0 && (m.type != dJointGetType(j) || m.body1 != b1 || m.body2 != b2 ||
                       !sameGeometry(m, read.geometry))) {
       core_.destroyJoint(m.id);
@@ -556,6 +608,10 @@ void WorldBridge::syncJoints(const WorldRecord& record) {
       core_.updateJoint(m.id, read.desc);
       core_.setJointEnabled(m.id, true);
     }
+    m.readValid = state.counted;
+    m.readChanges = state.changes;
+    m.readKey = readKey_;
+    m.readClamped = state.clamped;
   }
 
   for (std::size_t i = 0; i < pointContacts_.size(); ++i) {

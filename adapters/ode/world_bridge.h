@@ -204,6 +204,17 @@ class WorldBridge {
     JointGeometry local;  // geometry in its body's frame at creation
     double offset[3] = {0.0, 0.0, 0.0};
     bool seen = false;
+    // What the core joint was last made or updated from: the joint's
+    // setter count (JointRecord::changes) and the world's rows' settings
+    // then, and the ClampedInput kinds its read brought into range. While
+    // they hold, the joint is not read again (readAll).
+    bool readValid = false;
+    std::uint32_t readChanges = 0;
+    struct ReadKey {
+      double erp = 0.0, cfm = 0.0, step = 0.0;
+      bool operator==(const ReadKey&) const = default;
+    } readKey;
+    unsigned readClamped = 0;
   };
 
   bool readAll(const WorldRecord& record);
@@ -243,6 +254,16 @@ class WorldBridge {
   std::string collisionNote_;
   // Per step, reused.
   std::vector<JointRead> reads_;  // one per record.joints entry (contacts: unused)
+  // Per entry of reads_: the joint is as the core has it (not read again),
+  // its setter count at the read, the ClampedInput kinds the read set.
+  struct ReadState {
+    bool unchanged = false;
+    std::uint32_t changes = 0;
+    bool counted = false;  // the registry counts its setters (a record)
+    unsigned clamped = 0;
+  };
+  std::vector<ReadState> readStates_;
+  MappedJoint::ReadKey readKey_;  // this step's
   std::vector<ContactManifold> pointContacts_, manifolds_;
   ContactGrouping grouping_;                                // groupContacts' scratch
   std::vector<std::pair<dBodyID, dBodyID>> contactBodies_;  // ODE body1, body2 of each point
