@@ -302,8 +302,15 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     startQ_[i] = in.bodies[i].orientation;
   }
   guard_.begin(in.bodies, groupOfBody_, groupCount_, in.gravity, in.h);
-  for (Joint& j : in.joints)
-    j.stepImpulse.fill(0.0);
+  jointImpulses_.resize(in.joints.size());
+  for (std::size_t j = 0; j < in.joints.size(); ++j) {
+    const Joint& joint = in.joints[j];
+    JointImpulses& impulses = jointImpulses_[j];
+    impulses.warm = joint.warmImpulse;
+    impulses.slots = joint.warmSlots;
+    impulses.stepSize = joint.warmStepSize;
+    impulses.step.fill(0.0);
+  }
   for (ContactManifold& m : in.contacts) {
     for (ContactPoint& p : m.points) {
       p.stepNormalImpulse = 0.0;
@@ -329,6 +336,14 @@ void Solver::step(const StepInput& in, const SolverSettings& s, StepStats& stats
     bodyFullTurn_[i] = inIsland ? std::sqrt(islandFullTurn_[island]) : 0.0;
   }
   useClass(kEveryClass);
+  for (std::size_t j = 0; j < in.joints.size(); ++j) {
+    Joint& joint = in.joints[j];
+    const JointImpulses& impulses = jointImpulses_[j];
+    joint.warmImpulse = impulses.warm;
+    joint.warmSlots = impulses.slots;
+    joint.warmStepSize = impulses.stepSize;
+    joint.stepImpulse = impulses.step;
+  }
   finish(in, stats);
   guard_.check(in.bodies, blocks_, islandStart_, islandCount_, s, stats);
   stats.stepSeconds = seconds(start, Clock::now());
@@ -1055,6 +1070,7 @@ void Solver::carryRows(const StepInput& in, const SolverSettings& s, double h) {
 void Solver::buildJointBlock(const StepInput& in, const SolverSettings& s, double h, std::int32_t j,
                              ConstraintBlock& blk) {
   Joint& joint = in.joints[j];
+  const JointImpulses& impulses = jointImpulses_[j];
   const JointCommon& c = common(joint.desc);
   ConstraintRow* rows = &rows_[blk.firstRow];
   const RowWriter out = writeJointRows(in, joint, joint.state, rows);
@@ -1065,12 +1081,11 @@ void Solver::buildJointBlock(const StepInput& in, const SolverSettings& s, doubl
   blk.unilateral = false;
   blk.bounded = static_cast<std::uint8_t>(out.boundedCount());
   blk.equality = static_cast<std::uint8_t>(out.equalityCount());
-  const double warmRatio =
-      s.warmStarting && joint.warmStepSize > 0.0 ? h / joint.warmStepSize : 0.0;
+  const double warmRatio = s.warmStarting && impulses.stepSize > 0.0 ? h / impulses.stepSize : 0.0;
   for (int i = 0; i < blk.rowCount(); ++i) {
     ConstraintRow& row = rows[i];
-    const bool warm = (joint.warmSlots >> row.slot) & 1u;
-    row.impulse = warm ? warmRatio * joint.warmImpulse[row.slot] : 0.0;
+    const bool warm = (impulses.slots >> row.slot) & 1u;
+    row.impulse = warm ? warmRatio * impulses.warm[row.slot] : 0.0;
     if (row.softness && s.rigidJointSoftness && row.softness->mode == Softness::Mode::ErpCfm) {
       row.softness = &*s.rigidJointSoftness;
     }
@@ -2285,14 +2300,14 @@ void Solver::storeImpulses(const StepInput& in, double h) {
       storeContactImpulses(in.contacts[blk.contact], rows, blk.rowCount(), h);
       continue;
     }
-    Joint& joint = in.joints[blk.joint];
-    joint.warmSlots = 0;
+    JointImpulses& joint = jointImpulses_[blk.joint];
+    joint.slots = 0;
     for (int i = 0; i < blk.rowCount(); ++i) {
-      joint.warmImpulse[rows[i].slot] = rows[i].impulse;
-      joint.warmSlots |= 1u << rows[i].slot;
-      joint.stepImpulse[rows[i].slot] += rows[i].impulse;
+      joint.warm[rows[i].slot] = rows[i].impulse;
+      joint.slots |= 1u << rows[i].slot;
+      joint.step[rows[i].slot] += rows[i].impulse;
     }
-    joint.warmStepSize = h;
+    joint.stepSize = h;
   }
 }
 

@@ -251,6 +251,17 @@ class Solver {
   std::vector<std::uint8_t> heldByRows_;  // per body: a joint or contact acts on it this step
   std::vector<ConstraintBlock> blocks_;
   std::vector<ConstraintRow> rows_;
+  // Each joint's warm-start impulses and their sum over the step, side by
+  // side while the step runs: taken from the joints at its start, kept
+  // here after every sub-step, written back before finish(). The Joint
+  // objects are large and scattered; written after every sub-step they
+  // cost cloth32 7.6% of its step in cache misses.
+  struct JointImpulses {
+    std::array<double, kMaxJointSlots> warm{}, step{};
+    std::uint32_t slots = 0;  // Joint::warmSlots
+    double stepSize = 0.0;    // Joint::warmStepSize
+  };
+  std::vector<JointImpulses> jointImpulses_;
   // Each block's equality matrix (K, its factor or inverse), packed one
   // after another (ConstraintBlock::matrix).
   std::vector<double> blockMatrices_;
