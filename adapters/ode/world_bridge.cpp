@@ -34,7 +34,6 @@ std::string jointLabel(dJointID j) {
   return text;
 }
 
-// A vector in the frame of `body` (the world frame for 0).
 // Joint kinds whose read (JointRead) depends on nothing but what the
 // program set through setters, the world's ERP and CFM and the step: the
 // bridge need not read them again while those stay. AMotor (Euler angles,
@@ -59,6 +58,7 @@ bool readsOnlySetters(int type) {
   }
 }
 
+// A vector in the frame of `body` (the world frame for 0).
 Vec3 inBodyFrame(dBodyID body, const Vec3& v, bool point) {
   if (!body) return v;
   const dReal* q = dBodyGetQuaternion(body);
