@@ -327,7 +327,10 @@ void dJointAttach(dJointID j, dBodyID b1, dBodyID b2) {
     return;
   }
   real_dJointAttach(j, b1, b2);
-  jointChanged(j);
+  // A contact joint is read afresh every step (its record holds the
+  // contact), so it needs no count; an ODE program attaches each of its
+  // contacts every step, and counting took two locks each.
+  if (type != dJointTypeContact) jointChanged(j);
 }
 
 // Axis and point setters ODE would abort on (zero axis) or take as NaN.
