@@ -39,6 +39,12 @@ class PointerMap {
     return slots_[i].value;
   }
 
+  // The value for key as a default one: a present key's value starts over.
+  Value& fresh(Key key) {
+    if (Value* v = find(key)) return *v = Value{};
+    return (*this)[key];
+  }
+
   bool erase(Key key) {
     if (slots_.empty()) return false;
     std::size_t i = home(key);

@@ -141,10 +141,8 @@ void Registry::jointCreated(dWorldID world, dJointGroupID group, dJointID joint,
     removeJoint(*stale, joint);
   }
   std::lock_guard lock(w->mutex);
-  // A new key's record is a default one already (PointerMap); a record
-  // still there (an address ODE gave out again) starts over.
-  if (JointRecord* old = w->jointRecords.find(joint)) *old = JointRecord{};
-  JointRecord& r = w->jointRecords[joint];
+  // A record still there (an address ODE gave out again) starts over.
+  JointRecord& r = w->jointRecords.fresh(joint);
   r.group = group;
   r.index = static_cast<std::uint32_t>(w->joints.size());
   r.hasContact = contact != nullptr;
