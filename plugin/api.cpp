@@ -258,6 +258,10 @@ void readEnvironment() {
       say("ignoring BLOCKSTEP_THREADS=%s: expected 0 (one per core) to %d", v,
           SolverSettings::kMaxThreads);
   }
+  if (const char* v = std::getenv("BLOCKSTEP_EXACT_SUBSTEPS");
+      v && parseInt("BLOCKSTEP_EXACT_SUBSTEPS", v, 0, n, SolverSettings::kMaxSubsteps)) {
+    s.exactIslandSubsteps = n;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_RUNAWAY_GAIN");
       v && parseReal("BLOCKSTEP_RUNAWAY_GAIN", v, x)) {
     s.runawayEnergyGain = x;
@@ -707,6 +711,22 @@ void dWorldSetBlockThreads(dWorldID w, int threads) {
     return;
   }
   guarded(__func__, [&] { LockedWorld(w).settings().threads = threads; });
+}
+
+void dWorldSetBlockExactSubsteps(dWorldID w, int substeps) {
+  if (substeps < 0 || substeps > SolverSettings::kMaxSubsteps) {
+    say("dWorldSetBlockExactSubsteps(%d): expected 0 (the step's count) to %d; call ignored",
+        substeps, SolverSettings::kMaxSubsteps);
+    return;
+  }
+  guarded(__func__, [&] { LockedWorld(w).settings().exactIslandSubsteps = substeps; });
+}
+
+int dWorldGetBlockExactSubsteps(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    return heldOrSolvers(w, &ode::BridgeSettings::exactIslandSubsteps,
+                         &SolverSettings::exactIslandSubsteps);
+  });
 }
 
 int dWorldGetBlockThreads(dWorldID w) {

@@ -138,6 +138,7 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   if (settings_.positionProjections) s.positionProjections = *settings_.positionProjections;
   if (settings_.projectionTolerance) s.projectionTolerance = *settings_.projectionTolerance;
   if (settings_.threads) s.threads = *settings_.threads;
+  if (settings_.exactIslandSubsteps) s.exactIslandSubsteps = *settings_.exactIslandSubsteps;
   s.recordStageEnergy = settings_.recordStageEnergy;
   s.runawayEnergyGain = settings_.runawayEnergyGain;
   s.runawaySpeed = settings_.runawaySpeed;

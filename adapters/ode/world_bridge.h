@@ -106,6 +106,9 @@ struct BridgeSettings {
   // Threads sweeping independent islands (SolverSettings::threads; unset:
   // the solver's own, 1).
   std::optional<int> threads;
+  // Sub-steps of an island solved exactly (SolverSettings::
+  // exactIslandSubsteps, 0: the nominal count; unset: the solver's own).
+  std::optional<int> exactIslandSubsteps;
   // Record each sub-step's energy after every stage
   // (SolverSettings::recordStageEnergy), whatever the solver.
   bool recordStageEnergy = false;
@@ -128,6 +131,10 @@ struct BridgeSettings {
   dSurfaceParameters collisionSurface{};
   bool collideEverySubstep = false;
 
+  // The drop-in's solver for quickstep's iteration count: iterations / 2
+  // sub-steps (islands solved exactly too: SolverSettings::
+  // exactIslandSubsteps is the program's choice, README "Fewer sub-steps
+  // for exact islands" says what one sub-step costs them).
   static SolverSettings fromQuickStepIterations(int iterations);
 };
 

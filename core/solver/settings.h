@@ -103,6 +103,13 @@ struct SolverSettings {
   // stiffness of the nominal sub-step. 0: off (a fixed count).
   double maxTurnPerSubstep = 0.0;
   int maxSubstepFactor = 4;
+  // Sub-steps of an island solved exactly: in the last step its joints'
+  // equality rows were one island block, the step's end projected them
+  // (positionProjections) and no contact touched it, nor does one now. Its
+  // joints then hold at any step, so the nominal count buys it nothing
+  // ODE's own step would not. 0: the nominal `substeps`. Needs
+  // maxTurnPerSubstep (the islands' classes, Solver::chooseClasses).
+  int exactIslandSubsteps = 0;
   // Colliding every sub-step (World), a part whose own solve spins a
   // touching body's surface past maxTurnPerSubstep within it is taken
   // again from its start, shorter (once): its contacts were linearized

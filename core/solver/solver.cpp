@@ -166,7 +166,11 @@ int Solver::mostSubsteps(const SolverSettings& s) {
 }
 
 int Solver::substepsAt(const SolverSettings& s, double h, double turnRate) {
-  const int nominal = std::max(1, s.substeps);
+  return substepsAt(s, h, turnRate, s.substeps);
+}
+
+int Solver::substepsAt(const SolverSettings& s, double h, double turnRate, int nominal) {
+  nominal = std::max(1, nominal);
   if (s.maxTurnPerSubstep <= 0.0) return nominal;
   const double wanted = std::ceil(turnRate * h / s.maxTurnPerSubstep);
   if (!(wanted > nominal)) return nominal;  // NaN too: the guard deals with it
@@ -187,14 +191,19 @@ void Solver::notePeakTurnRate(const StepInput& in, const SolverSettings& s) {
       static_cast<int>(in.bodies.size()),
       [&](std::int32_t i) {
         const std::int32_t island = groupOfBody_[i];
-        if (island < 0 || island >= islandCount_) return;
+        if (island < 0 || island >= islandCount_) {
+          bodySolvedExactly_[i] = 0;
+          return;
+        }
         const Vec3& w = bodies_[i].w;
         const double turn = w.squaredNorm();
         peakTurnRate_ = std::max(peakTurnRate_, turn);
         islandFullTurn_[island] = std::max(islandFullTurn_[island], turn);
-        if (projects && !islandTouched_[island] && island >= islandBegin_ && island < islandEnd_ &&
-            islandBlocks().covers(island))
-          return;
+        if (island >= islandBegin_ && island < islandEnd_) {
+          const bool exact = projects && !islandTouched_[island] && islandBlocks().covers(island);
+          bodySolvedExactly_[i] = exact ? 1 : 0;
+          if (exact) return;
+        }
         double& seen = islandTurn_[island];
         switch (leverArms_[i]) {
           case LeverArms::None:
@@ -632,11 +641,33 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
     const std::int32_t island = islandOf(i);
     if (island >= 0) islandLastTurn_[island] = std::max(islandLastTurn_[island], bodyTurn_[i]);
   }
+  // Islands solved exactly in the last step and touching nothing now take
+  // exactIslandSubsteps from there (a new island, or one a contact
+  // reaches, the nominal count).
+  if (bodySolvedExactly_.size() < in.bodies.size()) bodySolvedExactly_.resize(in.bodies.size(), 0);
+  const bool exactFewer = s.exactIslandSubsteps > 0 && s.maxTurnPerSubstep > 0.0;
+  islandSolvedExactly_.assign(islandCount_, exactFewer ? 1 : 0);
+  if (exactFewer) {
+    for (std::int32_t i = 0; i < bodyCount; ++i) {
+      const std::int32_t island = islandOf(i);
+      if (island >= 0 && !bodySolvedExactly_[i]) islandSolvedExactly_[island] = 0;
+    }
+    for (const std::int32_t source : active_) {
+      if (source >= 0) continue;
+      const ContactManifold& m = in.contacts[contactIndex(source)];
+      for (const BodyId body : {m.bodyA, m.bodyB}) {
+        const std::int32_t island = body != kWorldBody ? islandOf(body) : -1;
+        if (island >= 0) islandSolvedExactly_[island] = 0;
+      }
+    }
+  }
   classes_.clear();
   classOfIsland_.resize(islandCount_);
-  int most = substepsAt(s, in.h, 0.0);
+  int most = islandCount_ > 0 ? 1 : substepsAt(s, in.h, 0.0);
   for (int k = 0; k < islandCount_; ++k) {
-    classOfIsland_[k] = substepsAt(s, in.h, islandLastTurn_[k]);
+    classOfIsland_[k] = islandSolvedExactly_[k]
+                            ? substepsAt(s, in.h, islandLastTurn_[k], s.exactIslandSubsteps)
+                            : substepsAt(s, in.h, islandLastTurn_[k]);
     most = std::max(most, classOfIsland_[k]);
   }
   // classOfIsland_ holds each island's count for now. Classes pay when

@@ -78,6 +78,8 @@ class Solver {
   // count, or more past maxTurnPerSubstep a sub-step (an island that
   // turned fast in the last step; the world's collision parts).
   static int substepsAt(const SolverSettings& s, double h, double turnRate);
+  // The same from another nominal count (SolverSettings::exactIslandSubsteps).
+  static int substepsAt(const SolverSettings& s, double h, double turnRate, int nominal);
 
  private:
   void buildIslands(const StepInput& in, const SolverSettings& s);
@@ -230,7 +232,12 @@ class Solver {
   std::vector<double> islandFullTurn_, bodyFullTurn_, islandLastFullTurn_;
   std::vector<LeverArms> leverArms_;
   std::vector<std::uint8_t> islandTouched_;  // per island: a contact holds it, this step
-  std::vector<std::uint8_t> islandImpact_;   // per island: a contact of it is an impact (prepare)
+  // Per body: its island was solved exactly in the last step (an island
+  // block, projected, touching nothing; SolverSettings::exactIslandSubsteps);
+  // per island (chooseClasses, before it numbers them by class), whether
+  // all its bodies were and no contact holds it now.
+  std::vector<std::uint8_t> bodySolvedExactly_, islandSolvedExactly_;
+  std::vector<std::uint8_t> islandImpact_;  // per island: a contact of it is an impact (prepare)
   std::vector<std::uint8_t>
       impactJointed_;  // per solver body: a joint holds it (markImpactIslands)
   std::vector<Vec3> leverAxis_;

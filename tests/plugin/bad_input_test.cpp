@@ -176,7 +176,17 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   dWorldSetBlockContactIslandRows(p.s.world, -3);
   dWorldSetBlockContactIslandRows(p.s.world, 100000);
   dWorldSetBlockIslandContacts(p.s.world, 3);
+  const int exactSubsteps = dWorldGetBlockExactSubsteps(p.s.world);
+  dWorldSetBlockExactSubsteps(p.s.world, -1);
+  dWorldSetBlockExactSubsteps(p.s.world, 1001);
   const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(exactSubsteps, 0);  // off unless the program asks
+  EXPECT_EQ(dWorldGetBlockExactSubsteps(p.s.world), 0);
+  for (const char* said : {"dWorldSetBlockExactSubsteps(-1): expected 0 (the step's count) to 1000",
+                           "dWorldSetBlockExactSubsteps(1001): expected 0"})
+    EXPECT_NE(err.find(said), std::string::npos) << err;
+  dWorldSetBlockExactSubsteps(p.s.world, 2);
+  EXPECT_EQ(dWorldGetBlockExactSubsteps(p.s.world), 2);
   EXPECT_EQ(contactRows, 128);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockContactIslandRows(p.s.world), contactRows);
   EXPECT_NE(err.find("dWorldSetBlockContactIslandRows(-3): expected 0 to 4096"), std::string::npos)

@@ -204,6 +204,17 @@ ODE_API dReal dWorldGetBlockProjectionTolerance(dWorldID w);
  * prepared in shares). BLOCKSTEP_THREADS=N. */
 ODE_API void dWorldSetBlockThreads(dWorldID w, int threads);
 ODE_API int dWorldGetBlockThreads(dWorldID w);
+/* Sub-steps of an island solved exactly: in the last step its joints were
+ * one island block, projected at the step's end, and no contact touched
+ * it, nor does one now (a hanging or swinging chain, a star of particles,
+ * a hair strand clear of the head). Its joints hold at any step, so it
+ * takes this many sub-steps (0 to 1000; 0: the step's own count) and more
+ * only for fast turns (dWorldSetBlockMaxTurn, which must be on). At 1 a
+ * chain costs about what quickstep 20 does, but loses energy as ODE's
+ * own step does (relax at the whole step: see dWorldSetBlockRelaxDrift).
+ * Default 0 under every solver. BLOCKSTEP_EXACT_SUBSTEPS=N. */
+ODE_API void dWorldSetBlockExactSubsteps(dWorldID w, int substeps);
+ODE_API int dWorldGetBlockExactSubsteps(dWorldID w);
 /* The runaway guard: an island whose kinetic energy grows beyond what its
  * forces, motors and position corrections explain by more than
  * energyGain (default 100, growth carried over steps), or in which a body
