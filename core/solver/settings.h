@@ -106,8 +106,9 @@ struct SolverSettings {
   // Sub-steps of an island solved exactly: in the last step its joints'
   // equality rows were one island block, the step's end projected them
   // (positionProjections) and no contact touched it, nor does one now. Its
-  // joints then hold at any step, so the nominal count buys it nothing
-  // ODE's own step would not. 0: the nominal `substeps`. Needs
+  // joints then hold at any step; more sub-steps buy it energy (relax over
+  // a longer step takes more of a turning joint's, README "Fewer sub-steps
+  // for exact islands"). 0: the nominal `substeps`. Needs
   // maxTurnPerSubstep (the islands' classes, Solver::chooseClasses).
   int exactIslandSubsteps = 0;
   // Colliding every sub-step (World), a part whose own solve spins a
