@@ -103,10 +103,12 @@ struct SolverSettings {
   // stiffness of the nominal sub-step. 0: off (a fixed count).
   double maxTurnPerSubstep = 0.0;
   int maxSubstepFactor = 4;
-  // Sub-steps of an island solved exactly: in the last step its joints'
+  // Sub-steps of an island solved exactly in the last step: its joints'
   // equality rows were one island block, the step's end projected them
-  // (positionProjections) and no contact touched it, nor does one now. Its
-  // joints then hold at any step; more sub-steps buy it energy (relax over
+  // (positionProjections) and no contact touched it, nor does one now; or
+  // it held contacts only, their normals one exact group (a stack:
+  // contact_island.h). Its rows then hold at any step; more sub-steps buy a
+  // joint island energy (relax over
   // a longer step takes more of a turning joint's, README "Fewer sub-steps
   // for exact islands"). 0: the nominal `substeps`. Needs
   // maxTurnPerSubstep (the islands' classes, Solver::chooseClasses).

@@ -177,6 +177,15 @@ int Solver::substepsAt(const SolverSettings& s, double h, double turnRate, int n
   return static_cast<int>(std::min<double>(wanted, mostSubsteps(s)));
 }
 
+// An island of contacts only whose normals were solved as one exact group
+// (contact_island.h): its load is carried at once, whatever the
+// sub-steps.
+bool Solver::contactsExactlyOnce(std::int32_t island) const {
+  if (contactIslandRows_ <= 0 || !contactIslands_.covers(island)) return false;
+  const int g = contactIslands_.groupsBegin(island);
+  return contactIslands_.groupsEnd(island) == g + 1 && contactIslands_.wholeIsland(g);
+}
+
 void Solver::notePeakTurnRate(const StepInput& in, const SolverSettings& s) {
   // An island whose joints the step's end projects back onto their rows
   // (projectIsland) and that touches nothing needs no sub-steps for what
@@ -200,9 +209,12 @@ void Solver::notePeakTurnRate(const StepInput& in, const SolverSettings& s) {
         peakTurnRate_ = std::max(peakTurnRate_, turn);
         islandFullTurn_[island] = std::max(islandFullTurn_[island], turn);
         if (island >= islandBegin_ && island < islandEnd_) {
-          const bool exact = projects && !islandTouched_[island] && islandBlocks().covers(island);
-          bodySolvedExactly_[i] = exact ? 1 : 0;
-          if (exact) return;
+          const bool jointsExact =
+              projects && !islandTouched_[island] && islandBlocks().covers(island);
+          bodySolvedExactly_[i] = jointsExact                   ? kExactJoints
+                                  : contactsExactlyOnce(island) ? kExactContacts
+                                                                : kNotExact;
+          if (jointsExact) return;
         }
         double& seen = islandTurn_[island];
         switch (leverArms_[i]) {
@@ -645,19 +657,24 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
   // exactIslandSubsteps from there (a new island, or one a contact
   // reaches, the nominal count).
   if (bodySolvedExactly_.size() < in.bodies.size()) bodySolvedExactly_.resize(in.bodies.size(), 0);
+  // A joint island stays exact while no contact touches it; a contact
+  // island's contacts are what made it exact.
   const bool exactFewer = s.exactIslandSubsteps > 0 && s.maxTurnPerSubstep > 0.0;
-  islandSolvedExactly_.assign(islandCount_, exactFewer ? 1 : 0);
+  islandSolvedExactly_.assign(islandCount_, exactFewer ? kExactContacts : kNotExact);
   if (exactFewer) {
     for (std::int32_t i = 0; i < bodyCount; ++i) {
       const std::int32_t island = islandOf(i);
-      if (island >= 0 && !bodySolvedExactly_[i]) islandSolvedExactly_[island] = 0;
+      if (island < 0) continue;
+      std::uint8_t& e = islandSolvedExactly_[island];
+      e = std::min(e, bodySolvedExactly_[i]);
     }
     for (const std::int32_t source : active_) {
       if (source >= 0) continue;
       const ContactManifold& m = in.contacts[contactIndex(source)];
       for (const BodyId body : {m.bodyA, m.bodyB}) {
         const std::int32_t island = body != kWorldBody ? islandOf(body) : -1;
-        if (island >= 0) islandSolvedExactly_[island] = 0;
+        if (island >= 0 && islandSolvedExactly_[island] == kExactJoints)
+          islandSolvedExactly_[island] = kNotExact;
       }
     }
   }

@@ -237,6 +237,9 @@ class Solver {
   // per island (chooseClasses, before it numbers them by class), whether
   // all its bodies were and no contact holds it now.
   std::vector<std::uint8_t> bodySolvedExactly_, islandSolvedExactly_;
+  // Their values, ordered so that an island takes the least of its bodies'.
+  static constexpr std::uint8_t kNotExact = 0, kExactJoints = 1, kExactContacts = 2;
+  bool contactsExactlyOnce(std::int32_t island) const;
   std::vector<std::uint8_t> islandImpact_;  // per island: a contact of it is an impact (prepare)
   std::vector<std::uint8_t>
       impactJointed_;  // per solver body: a joint holds it (markImpactIslands)
