@@ -258,9 +258,13 @@ void readEnvironment() {
       say("ignoring BLOCKSTEP_THREADS=%s: expected 0 (one per core) to %d", v,
           SolverSettings::kMaxThreads);
   }
-  if (const char* v = std::getenv("BLOCKSTEP_EXACT_SUBSTEPS");
-      v && parseInt("BLOCKSTEP_EXACT_SUBSTEPS", v, 0, n, SolverSettings::kMaxSubsteps)) {
-    s.exactIslandSubsteps = n;
+  if (const char* v = std::getenv("BLOCKSTEP_EXACT_JOINT_SUBSTEPS");
+      v && parseInt("BLOCKSTEP_EXACT_JOINT_SUBSTEPS", v, 0, n, SolverSettings::kMaxSubsteps)) {
+    s.exactJointIslandSubsteps = n;
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_EXACT_CONTACT_SUBSTEPS");
+      v && parseInt("BLOCKSTEP_EXACT_CONTACT_SUBSTEPS", v, 0, n, SolverSettings::kMaxSubsteps)) {
+    s.exactContactIslandSubsteps = n;
   }
   if (const char* v = std::getenv("BLOCKSTEP_RUNAWAY_GAIN");
       v && parseReal("BLOCKSTEP_RUNAWAY_GAIN", v, x)) {
@@ -713,19 +717,35 @@ void dWorldSetBlockThreads(dWorldID w, int threads) {
   guarded(__func__, [&] { LockedWorld(w).settings().threads = threads; });
 }
 
-void dWorldSetBlockExactSubsteps(dWorldID w, int substeps) {
+namespace {
+// dWorldSetBlockExactJointSubsteps and dWorldSetBlockExactContactSubsteps.
+void setExactSubsteps(const char* who, dWorldID w, int substeps,
+                      std::optional<int> ode::BridgeSettings::*field) {
   if (substeps < 0 || substeps > SolverSettings::kMaxSubsteps) {
-    say("dWorldSetBlockExactSubsteps(%d): expected 0 (the step's count) to %d; call ignored",
-        substeps, SolverSettings::kMaxSubsteps);
+    say("%s(%d): expected 0 (the step's count) to %d; call ignored", who, substeps,
+        SolverSettings::kMaxSubsteps);
     return;
   }
-  guarded(__func__, [&] { LockedWorld(w).settings().exactIslandSubsteps = substeps; });
+  guarded(who, [&] { LockedWorld(w).settings().*field = substeps; });
 }
+}  // namespace
 
-int dWorldGetBlockExactSubsteps(dWorldID w) {
+void dWorldSetBlockExactJointSubsteps(dWorldID w, int substeps) {
+  setExactSubsteps(__func__, w, substeps, &ode::BridgeSettings::exactJointIslandSubsteps);
+}
+int dWorldGetBlockExactJointSubsteps(dWorldID w) {
   return guarded(__func__, 0, [&] {
-    return heldOrSolvers(w, &ode::BridgeSettings::exactIslandSubsteps,
-                         &SolverSettings::exactIslandSubsteps);
+    return heldOrSolvers(w, &ode::BridgeSettings::exactJointIslandSubsteps,
+                         &SolverSettings::exactJointIslandSubsteps);
+  });
+}
+void dWorldSetBlockExactContactSubsteps(dWorldID w, int substeps) {
+  setExactSubsteps(__func__, w, substeps, &ode::BridgeSettings::exactContactIslandSubsteps);
+}
+int dWorldGetBlockExactContactSubsteps(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    return heldOrSolvers(w, &ode::BridgeSettings::exactContactIslandSubsteps,
+                         &SolverSettings::exactContactIslandSubsteps);
   });
 }
 

@@ -70,7 +70,10 @@ Vec3 inBodyFrame(dBodyID body, const Vec3& v, bool point) {
 }  // namespace
 
 SolverSettings BridgeSettings::fromQuickStepIterations(int iterations) {
-  return SolverSettings::subStepped(std::clamp(iterations / 2, 1, SolverSettings::kMaxSubsteps));
+  SolverSettings s =
+      SolverSettings::subStepped(std::clamp(iterations / 2, 1, SolverSettings::kMaxSubsteps));
+  s.exactContactIslandSubsteps = kExactContactIslandSubsteps;
+  return s;
 }
 
 WorldBridge::WorldBridge(dWorldID world) : world_(world) {
@@ -138,7 +141,10 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
   if (settings_.positionProjections) s.positionProjections = *settings_.positionProjections;
   if (settings_.projectionTolerance) s.projectionTolerance = *settings_.projectionTolerance;
   if (settings_.threads) s.threads = *settings_.threads;
-  if (settings_.exactIslandSubsteps) s.exactIslandSubsteps = *settings_.exactIslandSubsteps;
+  if (settings_.exactJointIslandSubsteps)
+    s.exactJointIslandSubsteps = *settings_.exactJointIslandSubsteps;
+  if (settings_.exactContactIslandSubsteps)
+    s.exactContactIslandSubsteps = *settings_.exactContactIslandSubsteps;
   s.recordStageEnergy = settings_.recordStageEnergy;
   s.runawayEnergyGain = settings_.runawayEnergyGain;
   s.runawaySpeed = settings_.runawaySpeed;

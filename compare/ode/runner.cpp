@@ -97,7 +97,8 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.projections) dWorldSetBlockProjections(w, *o.projections);
   if (o.projectionTolerance) dWorldSetBlockProjectionTolerance(w, *o.projectionTolerance);
   if (o.threads) dWorldSetBlockThreads(w, *o.threads);
-  if (o.exactSubsteps) dWorldSetBlockExactSubsteps(w, *o.exactSubsteps);
+  if (o.exactJointSubsteps) dWorldSetBlockExactJointSubsteps(w, *o.exactJointSubsteps);
+  if (o.exactContactSubsteps) dWorldSetBlockExactContactSubsteps(w, *o.exactContactSubsteps);
   if (o.persistence) dWorldSetBlockContactPersistence(w, *o.persistence);
   if (o.tolerance) dWorldSetBlockTolerance(w, *o.tolerance);
   if (coreCollision(s)) {
@@ -332,8 +333,10 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.maxTravel = decimal(text, key, value, 0.0, 1.0);
   } else if (key == "refresh_turn") {
     o.refreshTurn = decimal(text, key, value, 0.0, 10.0);
-  } else if (key == "exact_substeps") {
-    o.exactSubsteps = whole(text, key, value, 0, 1000);
+  } else if (key == "exact_joint_substeps") {
+    o.exactJointSubsteps = whole(text, key, value, 0, 1000);
+  } else if (key == "exact_contact_substeps") {
+    o.exactContactSubsteps = whole(text, key, value, 0, 1000);
   } else if (key == "threads") {
     o.threads = whole(text, key, value, 0, 256);
   } else if (key == "relax_drift") {
@@ -407,9 +410,12 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
            "blockstep: with project, islands whose rigid joint rows are within this of closing "
            "(m or rad) are not projected, 0: always"},
           {"threads", "blockstep: threads sweeping independent islands, 0: one per core"},
-          {"exact_substeps",
-           "blockstep: sub-steps of an island solved exactly (an island block, projected, "
-           "touching nothing), 0: the step's count"},
+          {"exact_joint_substeps",
+           "blockstep: sub-steps of an island of joints solved exactly (an island block, "
+           "projected, touching nothing), 0: the step's count"},
+          {"exact_contact_substeps",
+           "blockstep: sub-steps of an island of contacts solved as one exact group, 0: the "
+           "step's count"},
           {"persistence", "blockstep: contact persistence, m, 0: off"},
           {"tolerance", "blockstep: stop sweeping below this residual, m/s, 0: off"},
           {"collision",

@@ -56,9 +56,9 @@ struct Overrides {
   std::optional<bool> relaxDrift;      // relax closes the joints' linearization drift
   std::optional<int> projections;      // position projections at each step's end (0: off)
   std::optional<double> projectionTolerance;  // islands closed within this are not projected
-  std::optional<int> threads;
-  std::optional<int> exactSubsteps;  // sub-steps of islands solved exactly (0: nominal) // threads
-                                     // sweeping independent islands (0: per core)
+  std::optional<int> threads;                 // threads sweeping independent islands (0: per core)
+  // Sub-steps of joint islands and of contact islands solved exactly (0: the step's count).
+  std::optional<int> exactJointSubsteps, exactContactSubsteps;
   std::optional<double> persistence;  // contact persistence, m (0: off)
   std::optional<double> tolerance;    // stop sweeping below this residual, m/s (0: off)
   // Who collides: the scene's dSpaceCollide once a frame (unset), or

@@ -103,16 +103,21 @@ struct SolverSettings {
   // stiffness of the nominal sub-step. 0: off (a fixed count).
   double maxTurnPerSubstep = 0.0;
   int maxSubstepFactor = 4;
-  // Sub-steps of an island solved exactly in the last step: its joints'
-  // equality rows were one island block, the step's end projected them
-  // (positionProjections) and no contact touched it, nor does one now; or
-  // it held contacts only, their normals one exact group (a stack:
-  // contact_island.h). Its rows then hold at any step; more sub-steps buy a
-  // joint island energy (relax over
-  // a longer step takes more of a turning joint's, README "Fewer sub-steps
-  // for exact islands"). 0: the nominal `substeps`. Needs
-  // maxTurnPerSubstep (the islands' classes, Solver::chooseClasses).
-  int exactIslandSubsteps = 0;
+  // Sub-steps of an island of joints solved exactly in the last step: its
+  // joints' equality rows were one island block, the step's end projected
+  // them (positionProjections) and no contact touched it, nor does one
+  // now. Its joints then hold at any step; more sub-steps buy it energy
+  // (relax over a longer step takes more of a turning joint's: README
+  // "Fewer sub-steps for exact islands"), so by default it keeps the
+  // step's count. 0: the nominal `substeps`. Both need maxTurnPerSubstep
+  // (the islands' classes, Solver::chooseClasses).
+  int exactJointIslandSubsteps = 0;
+  // The same for an island of contacts only whose normals were one exact
+  // group (contact_island.h: a stack, a plank under a load). Its load is
+  // carried at once whatever the sub-steps; its fast turns still ask for
+  // more (a contact's point turns with its body). The drop-in's default
+  // is 1 (BridgeSettings::fromQuickStepIterations).
+  int exactContactIslandSubsteps = 0;
   // Colliding every sub-step (World), a part whose own solve spins a
   // touching body's surface past maxTurnPerSubstep within it is taken
   // again from its start, shorter (once): its contacts were linearized

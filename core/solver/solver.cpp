@@ -654,12 +654,13 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
     if (island >= 0) islandLastTurn_[island] = std::max(islandLastTurn_[island], bodyTurn_[i]);
   }
   // Islands solved exactly in the last step and touching nothing now take
-  // exactIslandSubsteps from there (a new island, or one a contact
+  // their own counts from there (a new island, or one a contact
   // reaches, the nominal count).
   if (bodySolvedExactly_.size() < in.bodies.size()) bodySolvedExactly_.resize(in.bodies.size(), 0);
   // A joint island stays exact while no contact touches it; a contact
   // island's contacts are what made it exact.
-  const bool exactFewer = s.exactIslandSubsteps > 0 && s.maxTurnPerSubstep > 0.0;
+  const bool exactFewer = (s.exactJointIslandSubsteps > 0 || s.exactContactIslandSubsteps > 0) &&
+                          s.maxTurnPerSubstep > 0.0;
   islandSolvedExactly_.assign(islandCount_, exactFewer ? kExactContacts : kNotExact);
   if (exactFewer) {
     for (std::int32_t i = 0; i < bodyCount; ++i) {
@@ -682,9 +683,12 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
   classOfIsland_.resize(islandCount_);
   int most = islandCount_ > 0 ? 1 : substepsAt(s, in.h, 0.0);
   for (int k = 0; k < islandCount_; ++k) {
-    classOfIsland_[k] = islandSolvedExactly_[k]
-                            ? substepsAt(s, in.h, islandLastTurn_[k], s.exactIslandSubsteps)
-                            : substepsAt(s, in.h, islandLastTurn_[k]);
+    const std::uint8_t exact = islandSolvedExactly_[k];
+    const int exactCount = exact == kExactJoints     ? s.exactJointIslandSubsteps
+                           : exact == kExactContacts ? s.exactContactIslandSubsteps
+                                                     : 0;
+    classOfIsland_[k] =
+        substepsAt(s, in.h, islandLastTurn_[k], exactCount > 0 ? exactCount : s.substeps);
     most = std::max(most, classOfIsland_[k]);
   }
   // classOfIsland_ holds each island's count for now. Classes pay when

@@ -78,7 +78,8 @@ class Solver {
   // count, or more past maxTurnPerSubstep a sub-step (an island that
   // turned fast in the last step; the world's collision parts).
   static int substepsAt(const SolverSettings& s, double h, double turnRate);
-  // The same from another nominal count (SolverSettings::exactIslandSubsteps).
+  // The same from another nominal count (SolverSettings::
+  // exactJointIslandSubsteps, exactContactIslandSubsteps).
   static int substepsAt(const SolverSettings& s, double h, double turnRate, int nominal);
 
  private:
@@ -233,9 +234,9 @@ class Solver {
   std::vector<LeverArms> leverArms_;
   std::vector<std::uint8_t> islandTouched_;  // per island: a contact holds it, this step
   // Per body: its island was solved exactly in the last step (an island
-  // block, projected, touching nothing; SolverSettings::exactIslandSubsteps);
-  // per island (chooseClasses, before it numbers them by class), whether
-  // all its bodies were and no contact holds it now.
+  // block, projected, touching nothing; or contacts only, one exact group);
+  // per island (chooseClasses, before it numbers them by class), the least
+  // of its bodies' (a joint island: unless a contact holds it now).
   std::vector<std::uint8_t> bodySolvedExactly_, islandSolvedExactly_;
   // Their values, ordered so that an island takes the least of its bodies'.
   static constexpr std::uint8_t kNotExact = 0, kExactJoints = 1, kExactContacts = 2;

@@ -1444,7 +1444,7 @@ TEST(Solver, EachIslandTakesTheSubstepsItsOwnTurnAsksFor) {
 }
 
 // An island solved exactly (its joints one island block, projected at the
-// step's end, touching nothing) takes exactIslandSubsteps from its second
+// step's end, touching nothing) takes exactJointIslandSubsteps from its second
 // step, and the nominal count again once a contact holds it: ten spheres
 // on ball joints released horizontally from a pin 1 m above a plane at
 // 0.3 m swing down until their end reaches the plane. While they swing
@@ -1460,7 +1460,7 @@ TEST(Solver, AnIslandSolvedExactlyTakesItsOwnSubstepsUntilAContactHoldsIt) {
   auto swing = [](int exactSubsteps) {
     World world;
     SolverSettings s = SolverSettings::subStepped(10);
-    s.exactIslandSubsteps = exactSubsteps;
+    s.exactJointIslandSubsteps = exactSubsteps;
     world.setSettings(s);
     world.addShape(Shape::plane(Vec3::UnitZ(), 0.3));
     const int n = 10;
@@ -1510,7 +1510,7 @@ TEST(Solver, AnIslandSolvedExactlyTakesItsOwnSubstepsUntilAContactHoldsIt) {
 
 // A stack of ten boxes is an island of contacts only, its normals solved
 // as one exact group (contact_island.h), which carries the load at once
-// whatever the sub-steps: with exactIslandSubsteps 1 it takes one
+// whatever the sub-steps: with exactContactIslandSubsteps 1 it takes one
 // sub-step a frame from its second and stands as still as at ten (the
 // top box within 1 mm over 600 frames).
 TEST(Solver, AStackSolvedExactlyTakesOneSubstepAndStandsAsAtTen) {
@@ -1522,7 +1522,7 @@ TEST(Solver, AStackSolvedExactlyTakesOneSubstepAndStandsAsAtTen) {
     scenes::Scene scene;
     scenes::makeScene("stack", scene);
     SolverSettings s = SolverSettings::subStepped(10);
-    s.exactIslandSubsteps = exactSubsteps;
+    s.exactContactIslandSubsteps = exactSubsteps;
     scene.world.setSettings(s);
     Run r;
     for (int f = 0; f < 600; ++f) {

@@ -176,17 +176,26 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   dWorldSetBlockContactIslandRows(p.s.world, -3);
   dWorldSetBlockContactIslandRows(p.s.world, 100000);
   dWorldSetBlockIslandContacts(p.s.world, 3);
-  const int exactSubsteps = dWorldGetBlockExactSubsteps(p.s.world);
-  dWorldSetBlockExactSubsteps(p.s.world, -1);
-  dWorldSetBlockExactSubsteps(p.s.world, 1001);
+  const int exactJoint = dWorldGetBlockExactJointSubsteps(p.s.world);
+  const int exactContact = dWorldGetBlockExactContactSubsteps(p.s.world);
+  dWorldSetBlockExactJointSubsteps(p.s.world, -1);
+  dWorldSetBlockExactContactSubsteps(p.s.world, 1001);
   const std::string err = testing::internal::GetCapturedStderr();
-  EXPECT_EQ(exactSubsteps, 0);  // off unless the program asks
-  EXPECT_EQ(dWorldGetBlockExactSubsteps(p.s.world), 0);
-  for (const char* said : {"dWorldSetBlockExactSubsteps(-1): expected 0 (the step's count) to 1000",
-                           "dWorldSetBlockExactSubsteps(1001): expected 0"})
+  EXPECT_EQ(exactJoint, 0);    // off unless the program asks
+  EXPECT_EQ(exactContact, 0);  // the sub-stepped preset's: every island its N
+  EXPECT_EQ(dWorldGetBlockExactJointSubsteps(p.s.world), 0);
+  EXPECT_EQ(dWorldGetBlockExactContactSubsteps(p.s.world), 0);
+  {
+    Pendulum dropIn;  // following quickstep: contact islands at one sub-step
+    EXPECT_EQ(dWorldGetBlockExactContactSubsteps(dropIn.s.world), 1);
+    EXPECT_EQ(dWorldGetBlockExactJointSubsteps(dropIn.s.world), 0);
+  }
+  for (const char* said :
+       {"dWorldSetBlockExactJointSubsteps(-1): expected 0 (the step's count) to 1000",
+        "dWorldSetBlockExactContactSubsteps(1001): expected 0"})
     EXPECT_NE(err.find(said), std::string::npos) << err;
-  dWorldSetBlockExactSubsteps(p.s.world, 2);
-  EXPECT_EQ(dWorldGetBlockExactSubsteps(p.s.world), 2);
+  dWorldSetBlockExactJointSubsteps(p.s.world, 2);
+  EXPECT_EQ(dWorldGetBlockExactJointSubsteps(p.s.world), 2);
   EXPECT_EQ(contactRows, 128);  // the sub-stepped preset's
   EXPECT_EQ(dWorldGetBlockContactIslandRows(p.s.world), contactRows);
   EXPECT_NE(err.find("dWorldSetBlockContactIslandRows(-3): expected 0 to 4096"), std::string::npos)

@@ -204,22 +204,28 @@ ODE_API dReal dWorldGetBlockProjectionTolerance(dWorldID w);
  * prepared in shares). BLOCKSTEP_THREADS=N. */
 ODE_API void dWorldSetBlockThreads(dWorldID w, int threads);
 ODE_API int dWorldGetBlockThreads(dWorldID w);
-/* Sub-steps of an island solved exactly: in the last step either its
+/* Sub-steps of an island of joints solved exactly: in the last step its
  * joints were one island block, projected at the step's end, and no
  * contact touched it, nor does one now (a hanging or swinging chain, a
- * star of particles, a hair strand clear of the head); or it held
- * contacts only, their normals solved as one exact group (a stack, up to
- * dWorldSetBlockContactIslandRows points). Its rows hold at any step, so
- * it takes this many sub-steps (0 to 1000; 0: the step's own count); a
- * contact island's fast turns still ask for more (dWorldSetBlockMaxTurn,
- * which must be on), a joint island's do not (the projection closes what
- * they open). At 1 a chain or a stack costs about what quickstep 20 does,
- * but a turning joint loses more energy than at ten sub-steps (PyODE's
- * double pendulum at 50 Hz keeps 57% in 10 s, against 84% and
- * dWorldStep's 75%). Default 0 under every solver.
- * BLOCKSTEP_EXACT_SUBSTEPS=N. */
-ODE_API void dWorldSetBlockExactSubsteps(dWorldID w, int substeps);
-ODE_API int dWorldGetBlockExactSubsteps(dWorldID w);
+ * star of particles, a hair strand clear of the head). Its joints hold at
+ * any step, so it takes this many sub-steps (0 to 1000; 0, the default:
+ * the step's own count), its turns asking for no more (the projection
+ * closes what they open; dWorldSetBlockMaxTurn must be on). At 1 a chain
+ * costs about what quickstep 20 does, but a turning joint loses more
+ * energy than at ten sub-steps (PyODE's double pendulum at 50 Hz keeps
+ * 57% in 10 s, against 84% and dWorldStep's 75%).
+ * BLOCKSTEP_EXACT_JOINT_SUBSTEPS=N. */
+ODE_API void dWorldSetBlockExactJointSubsteps(dWorldID w, int substeps);
+ODE_API int dWorldGetBlockExactJointSubsteps(dWorldID w);
+/* The same for an island of contacts only whose normals were solved as
+ * one exact group (a stack, a plank under a load: up to
+ * dWorldSetBlockContactIslandRows points): its load is carried at once
+ * whatever the sub-steps; its fast turns still ask for more. The drop-in
+ * takes 1 by default while the world follows quickstep's iteration
+ * count; other solvers (dWorldSetBlockSubsteppedSolver among them) 0.
+ * BLOCKSTEP_EXACT_CONTACT_SUBSTEPS=N. */
+ODE_API void dWorldSetBlockExactContactSubsteps(dWorldID w, int substeps);
+ODE_API int dWorldGetBlockExactContactSubsteps(dWorldID w);
 /* The runaway guard: an island whose kinetic energy grows beyond what its
  * forces, motors and position corrections explain by more than
  * energyGain (default 100, growth carried over steps), or in which a body
