@@ -717,21 +717,9 @@ void dWorldSetBlockThreads(dWorldID w, int threads) {
   guarded(__func__, [&] { LockedWorld(w).settings().threads = threads; });
 }
 
-namespace {
-// dWorldSetBlockExactJointSubsteps and dWorldSetBlockExactContactSubsteps.
-void setExactSubsteps(const char* who, dWorldID w, int substeps,
-                      std::optional<int> ode::BridgeSettings::*field) {
-  if (substeps < 0 || substeps > SolverSettings::kMaxSubsteps) {
-    say("%s(%d): expected 0 (the step's count) to %d; call ignored", who, substeps,
-        SolverSettings::kMaxSubsteps);
-    return;
-  }
-  guarded(who, [&] { LockedWorld(w).settings().*field = substeps; });
-}
-}  // namespace
-
 void dWorldSetBlockExactJointSubsteps(dWorldID w, int substeps) {
-  setExactSubsteps(__func__, w, substeps, &ode::BridgeSettings::exactJointIslandSubsteps);
+  if (!inRange(__func__, substeps, 0, SolverSettings::kMaxSubsteps)) return;
+  guarded(__func__, [&] { LockedWorld(w).settings().exactJointIslandSubsteps = substeps; });
 }
 int dWorldGetBlockExactJointSubsteps(dWorldID w) {
   return guarded(__func__, 0, [&] {
@@ -740,7 +728,8 @@ int dWorldGetBlockExactJointSubsteps(dWorldID w) {
   });
 }
 void dWorldSetBlockExactContactSubsteps(dWorldID w, int substeps) {
-  setExactSubsteps(__func__, w, substeps, &ode::BridgeSettings::exactContactIslandSubsteps);
+  if (!inRange(__func__, substeps, 0, SolverSettings::kMaxSubsteps)) return;
+  guarded(__func__, [&] { LockedWorld(w).settings().exactContactIslandSubsteps = substeps; });
 }
 int dWorldGetBlockExactContactSubsteps(dWorldID w) {
   return guarded(__func__, 0, [&] {

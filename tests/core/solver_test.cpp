@@ -1508,6 +1508,19 @@ TEST(Solver, AnIslandSolvedExactlyTakesItsOwnSubstepsUntilAContactHoldsIt) {
   EXPECT_GT(exact.energyLostFree, nominal.energyLostFree);
 }
 
+// Steps the native stack scene (compare/native/scenes.cpp) under these
+// settings, handing each frame's quality and step statistics to `frame`.
+template <class Frame>
+void stepStack(const SolverSettings& settings, int frames, Frame frame) {
+  scenes::Scene scene;
+  scenes::makeScene("stack", scene);
+  scene.world.setSettings(settings);
+  for (int f = 0; f < frames; ++f) {
+    scene.world.step(scene.frameStep);
+    frame(f, scenes::measure(scene), scene.world.lastStepStats());
+  }
+}
+
 // A stack of ten boxes is an island of contacts only, its normals solved
 // as one exact group (contact_island.h), which carries the load at once
 // whatever the sub-steps: with exactContactIslandSubsteps 1 it takes one
@@ -1519,19 +1532,14 @@ TEST(Solver, AStackSolvedExactlyTakesOneSubstepAndStandsAsAtTen) {
     int mostSubsteps = 0;
   };
   auto run = [](int exactSubsteps) {
-    scenes::Scene scene;
-    scenes::makeScene("stack", scene);
     SolverSettings s = SolverSettings::subStepped(10);
     s.exactContactIslandSubsteps = exactSubsteps;
-    scene.world.setSettings(s);
     Run r;
-    for (int f = 0; f < 600; ++f) {
-      scene.world.step(scene.frameStep);
-      const scenes::Quality q = scenes::measure(scene);
+    stepStack(s, 600, [&](int f, const scenes::Quality& q, const StepStats& stats) {
       r.drift = std::max(r.drift, q.drift);
       r.penetration = std::max(r.penetration, q.penetration);
-      if (f > 0) r.mostSubsteps = std::max(r.mostSubsteps, scene.world.lastStepStats().substeps);
-    }
+      if (f > 0) r.mostSubsteps = std::max(r.mostSubsteps, stats.substeps);
+    });
     return r;
   };
   const Run one = run(1), ten = run(0);
@@ -1701,19 +1709,14 @@ TEST(Solver, AStackAtRestKeepsItsRowsAndStandsAsWhenEverySubstepPrepares) {
     double drift = 0.0, penetration = 0.0, preparedPerStep = 0.0;
   };
   auto run = [](double refreshTurn) {
-    scenes::Scene scene;
-    scenes::makeScene("stack", scene);
     SolverSettings s = SolverSettings::subStepped(10);
     s.maxTurnPerRefresh = refreshTurn;
-    scene.world.setSettings(s);
     Run r;
-    for (int f = 0; f < 300; ++f) {
-      scene.world.step(scene.frameStep);
-      const scenes::Quality q = scenes::measure(scene);
+    stepStack(s, 300, [&](int f, const scenes::Quality& q, const StepStats& stats) {
       r.drift = std::max(r.drift, q.drift);
       r.penetration = std::max(r.penetration, q.penetration);
-      if (f >= 120) r.preparedPerStep += scene.world.lastStepStats().preparedSubsteps / 180.0;
-    }
+      if (f >= 120) r.preparedPerStep += stats.preparedSubsteps / 180.0;
+    });
     return r;
   };
   const Run kept = run(SolverSettings::kMaxTurnPerRefresh), fresh = run(0.0);
