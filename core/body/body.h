@@ -67,6 +67,9 @@ struct Body {
   double maxAngularSpeed = std::numeric_limits<double>::infinity();
   RotationUpdate rotation;
   bool alive = true;  // false once destroyed; the slot is reused
+  // Which body holds the slot (World numbers them as it makes them): what
+  // the solver kept of a slot's last body is not the next one's.
+  std::uint64_t serial = 0;
 
   bool isDynamic() const { return type == BodyType::Dynamic; }
 

@@ -214,6 +214,7 @@ void Solver::notePeakTurnRate(const StepInput& in, const SolverSettings& s) {
           bodySolvedExactly_[i] = jointsExact                   ? kExactJoints
                                   : contactsExactlyOnce(island) ? kExactContacts
                                                                 : kNotExact;
+          exactSerial_[i] = in.bodies[i].serial;
           if (jointsExact) return;
         }
         double& seen = islandTurn_[island];
@@ -653,12 +654,15 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
     const std::int32_t island = islandOf(i);
     if (island >= 0) islandLastTurn_[island] = std::max(islandLastTurn_[island], bodyTurn_[i]);
   }
-  // Islands solved exactly in the last step and touching nothing now take
-  // their own counts from there (a new island, or one a contact
-  // reaches, the nominal count).
-  if (bodySolvedExactly_.size() < in.bodies.size()) bodySolvedExactly_.resize(in.bodies.size(), 0);
-  // A joint island stays exact while no contact touches it; a contact
-  // island's contacts are what made it exact.
+  // Islands solved exactly in the last step take their own counts
+  // (exactJointIslandSubsteps, exactContactIslandSubsteps): each island the
+  // least exact of its bodies (a new body: not), and a joint island only
+  // while no contact touches it, where a contact island's contacts are
+  // what made it exact.
+  if (bodySolvedExactly_.size() < in.bodies.size()) {
+    bodySolvedExactly_.resize(in.bodies.size(), kNotExact);
+    exactSerial_.resize(in.bodies.size(), 0);
+  }
   const bool exactFewer = (s.exactJointIslandSubsteps > 0 || s.exactContactIslandSubsteps > 0) &&
                           s.maxTurnPerSubstep > 0.0;
   islandSolvedExactly_.assign(islandCount_, exactFewer ? kExactContacts : kNotExact);
@@ -667,14 +671,26 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
       const std::int32_t island = islandOf(i);
       if (island < 0) continue;
       std::uint8_t& e = islandSolvedExactly_[island];
-      e = std::min(e, bodySolvedExactly_[i]);
+      const bool sameBody = exactSerial_[i] == in.bodies[i].serial;
+      e = std::min(e, sameBody ? bodySolvedExactly_[i] : kNotExact);
     }
+    // A contact takes a joint island's exactness, a joint (attached since)
+    // a contact island's.
     for (const std::int32_t source : active_) {
-      if (source >= 0) continue;
-      const ContactManifold& m = in.contacts[contactIndex(source)];
-      for (const BodyId body : {m.bodyA, m.bodyB}) {
+      BodyId bodyA = kWorldBody, bodyB = kWorldBody;
+      if (source >= 0) {
+        const JointCommon& c = common(in.joints[source].desc);
+        bodyA = c.bodyA;
+        bodyB = c.bodyB;
+      } else {
+        const ContactManifold& m = in.contacts[contactIndex(source)];
+        bodyA = m.bodyA;
+        bodyB = m.bodyB;
+      }
+      const std::uint8_t lost = source < 0 ? kExactJoints : kExactContacts;
+      for (const BodyId body : {bodyA, bodyB}) {
         const std::int32_t island = body != kWorldBody ? islandOf(body) : -1;
-        if (island >= 0 && islandSolvedExactly_[island] == kExactJoints)
+        if (island >= 0 && islandSolvedExactly_[island] == lost)
           islandSolvedExactly_[island] = kNotExact;
       }
     }

@@ -238,6 +238,7 @@ class Solver {
   // per island (chooseClasses, before it numbers them by class), the least
   // of its bodies' (a joint island: unless a contact holds it now).
   std::vector<std::uint8_t> bodySolvedExactly_, islandSolvedExactly_;
+  std::vector<std::uint64_t> exactSerial_;  // per body: Body::serial when its flag was set
   // Their values, ordered so that an island takes the least of its bodies'.
   static constexpr std::uint8_t kNotExact = 0, kExactJoints = 1, kExactContacts = 2;
   bool contactsExactlyOnce(std::int32_t island) const;

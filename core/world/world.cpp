@@ -108,6 +108,7 @@ BodyId World::createBody(const BodyDesc& d) {
   if (!(d.maxAngularSpeed >= 0.0)) throw Error(who + ": max angular speed must be >= 0");
 
   Body b;
+  b.serial = ++bodiesMade_;
   b.type = d.type;
   b.position = d.position;
   b.orientation = d.orientation.normalized();

@@ -170,6 +170,7 @@ class World {
   // took time quadratic in its size).
   std::vector<std::vector<JointId>> jointsOfBody_;
   std::vector<BodyId> freeBodies_;
+  std::uint64_t bodiesMade_ = 0;  // Body::serial of the last one made
   std::vector<JointId> freeJoints_;
   std::vector<Saved> saved_;
   std::vector<Saved> partStart_;        // collision every sub-step: the bodies before a part

@@ -1554,6 +1554,32 @@ TEST(Solver, AStackSolvedExactlyTakesOneSubstepAndStandsAsAtTen) {
   EXPECT_LT(one.penetration, 1e-3);
 }
 
+// A body made in a destroyed body's slot is new to the solver: the
+// stack's top box replaced between two steps by a box in the same slot
+// (the world reuses it) puts the stack back to ten sub-steps for a step,
+// until the new box has been solved with it once.
+TEST(Solver, ABodyInAReusedSlotIsNotTakenAsSolvedExactly) {
+  scenes::Scene scene;
+  scenes::makeScene("stack", scene);
+  SolverSettings s = SolverSettings::subStepped(10);
+  s.exactContactIslandSubsteps = 1;
+  scene.world.setSettings(s);
+  for (int f = 0; f < 30; ++f)
+    scene.world.step(scene.frameStep);
+  ASSERT_EQ(scene.world.lastStepStats().substeps, 1);
+  const Body top = scene.world.body(scene.tracked);
+  scene.world.destroyBody(scene.tracked);
+  BodyDesc d = boxBody(top.position, top.mass, Vec3(0.5, 0.5, 0.5));
+  d.orientation = top.orientation;
+  const BodyId again = scene.world.createBody(d);
+  ASSERT_EQ(again, scene.tracked) << "the world reuses the slot";
+  scene.world.addShape(Shape::box(again, Vec3(0.25, 0.25, 0.25)));
+  scene.world.step(scene.frameStep);
+  EXPECT_EQ(scene.world.lastStepStats().substeps, 10);
+  scene.world.step(scene.frameStep);
+  EXPECT_EQ(scene.world.lastStepStats().substeps, 1);
+}
+
 // Stepped apart, each class of islands records its own sub-steps, each
 // from its start: the circling box's 25 and the pendulum's 10, one class
 // after the other. A change read from one sample to the next stays within
