@@ -631,30 +631,35 @@ void IslandBlocks::coupleBounded(const Group& isl, const std::vector<ConstraintB
 // Each row moves the island's bodies by its precomputed velocity changes;
 // the equality rows' share, w times the row's impulse, is added once at
 // the end (only the island solve reads their impulses).
-void IslandBlocks::solveBounded(int island, bool useBias,
+void IslandBlocks::solveBounded(int island, bool useBias, int motorPasses,
                                 const std::vector<ConstraintBlock>& blocks,
                                 std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies) {
   const Group& isl = groups_[wholeIsland_[island]];
   const std::int32_t n = isl.size;
   const std::int32_t* rowOf = &entryRow_[isl.firstEntry];
   const std::int32_t* islandBody = &islandBodies_[isl.firstBody];
-  for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
-    const BoundedRow& br = bounded_[k];
-    ConstraintRow& row = rows[br.row];
+  const std::int32_t firstBounded = isl.firstBounded, endBounded = firstBounded + isl.boundedCount;
+  for (std::int32_t k = firstBounded; k < endBounded; ++k)
     boundedStep_[k] = 0.0;
-    if (relaxSkips(row, useBias)) continue;
-    const ConstraintBlock& blk = blocks[br.block];
-    const double residual = rowResidual(row, useBias, bodies[blk.bodyA], bodies[blk.bodyB]);
-    const double next = std::clamp(row.impulse - residual * br.effMass, row.lo, row.hi);
-    const double dP = next - row.impulse;
-    if (dP == 0.0) continue;
-    row.impulse = next;
-    boundedStep_[k] = dP;
-    const Vec3* delta = &deltas_[br.deltas];
-    for (std::int32_t b = 0; b < isl.bodyCount; ++b)
-      addVelocity(bodies[islandBody[b]], dP * delta[2 * b], dP * delta[2 * b + 1]);
+  for (int pass = 0; pass < motorPasses; ++pass) {
+    for (std::int32_t k = firstBounded; k < endBounded; ++k) {
+      const BoundedRow& br = bounded_[k];
+      ConstraintRow& row = rows[br.row];
+      if (relaxSkips(row, useBias)) continue;
+      const ConstraintBlock& blk = blocks[br.block];
+      if (pass > 0 && (row.biasKind != RowBias::Velocity || blk.joint < 0)) continue;
+      const double residual = rowResidual(row, useBias, bodies[blk.bodyA], bodies[blk.bodyB]);
+      const double next = std::clamp(row.impulse - residual * br.effMass, row.lo, row.hi);
+      const double dP = next - row.impulse;
+      if (dP == 0.0) continue;
+      row.impulse = next;
+      boundedStep_[k] += dP;
+      const Vec3* delta = &deltas_[br.deltas];
+      for (std::int32_t b = 0; b < isl.bodyCount; ++b)
+        addVelocity(bodies[islandBody[b]], dP * delta[2 * b], dP * delta[2 * b + 1]);
+    }
   }
-  for (std::int32_t k = isl.firstBounded; k < isl.firstBounded + isl.boundedCount; ++k) {
+  for (std::int32_t k = firstBounded; k < endBounded; ++k) {
     const double dP = boundedStep_[k];
     if (dP == 0.0) continue;
     const double* w = &weights_[bounded_[k].weights];

@@ -135,9 +135,12 @@ class IslandBlocks {
   }
 
   // The island's joint bounded rows, each clamped and solved in the null
-  // space of the island's equality rows (its impulse moves them by w).
-  void solveBounded(int island, bool useBias, const std::vector<ConstraintBlock>& blocks,
-                    std::vector<ConstraintRow>& rows, std::vector<SolverBody>& bodies);
+  // space of the island's equality rows (its impulse moves them by w):
+  // one Gauss-Seidel pass over them all, then motorPasses - 1 more over
+  // its joints' motors (Solver::kMotorPassesPerStep).
+  void solveBounded(int island, bool useBias, int motorPasses,
+                    const std::vector<ConstraintBlock>& blocks, std::vector<ConstraintRow>& rows,
+                    std::vector<SolverBody>& bodies);
 
   // One exact solve of a group's equality rows: dP = -K^-1 (J v + b +
   // gamma P), applied to the bodies and accumulated in the rows.

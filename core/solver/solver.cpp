@@ -411,6 +411,7 @@ void Solver::runSubsteps(const StepInput& in, const SolverSettings& s, int subst
   // it to 0.1 mm for 10% more time. More sub-steps give friction more
   // passes anyway (a second then cost the drop-in's stack 30%).
   islandFrictionPasses_ = substeps == 1 ? 2 : 1;
+  islandMotorPasses_ = std::max(1, kMotorPassesPerStep / substeps);
   // The guard's energy count costs a pass over the rows per sub-step;
   // without an energy limit only non-finite states and speeds are checked.
   const bool countEnergy = s.runawayEnergyGain > 0.0 && std::isfinite(s.runawayEnergyGain);
@@ -1669,7 +1670,8 @@ void Solver::sweep(int island, bool useBias, BlockMode mode) {
     for (int g = islandBlocks().groupsBegin(island); g < islandBlocks().groupsEnd(island); ++g)
       islandBlocks().solve(g, useBias, blocks_, rows_, bodies_);
   }
-  if (islandBounded) islandBlocks().solveBounded(island, useBias, blocks_, rows_, bodies_);
+  if (islandBounded)
+    islandBlocks().solveBounded(island, useBias, islandMotorPasses_, blocks_, rows_, bodies_);
   // The island's groups of contact normals, each at once, after their
   // friction; a group's manifolds finish what it leaves (contact_island.h).
   if (!contactIsland) return;

@@ -1159,27 +1159,37 @@ std::vector<BodyId> motorHeldPlanks(World& world, int planks, double x0, bool bo
 // (2e-15 J). Each motor solved in the null space of its own joint only
 // overshot what the island's equality block then took back: the bridge
 // shook (1e-3 J), calmed, then gained energy again from 3e-7 to 6e-5 J
-// over 70 steps, and ran away once a weight landed on it.
+// over 70 steps, and ran away once a weight landed on it. At one or two
+// sub-steps one pass over the motors a sweep lagged behind their coupling
+// through the beam: it swung up to 0.068 J (one sub-step) and 0.037 J
+// (two, caught by the runaway guard) before the passes per step
+// (Solver::kMotorPassesPerStep). It sags 1.16, 0.61 and 0.21 mm at 1,
+// 2 and 10 sub-steps, as the joints' softness (ODE's CFM) gives at those
+// sub-steps.
 TEST(Solver, MotorHeldBridgeInOneIslandBlockStaysStill) {
-  World world;
-  world.setSettings(SolverSettings::subStepped(10));
-  world.setGravity(Vec3(0, 0, -9.8));
-  const int planks = 16;
-  const std::vector<BodyId> bridge = motorHeldPlanks(world, planks, -planks / 2.0, true);
-  double settled = 0.0, sag = 0.0;
-  for (int step = 0; step < 400; ++step) {
-    world.step(0.002);
-    ASSERT_TRUE(world.lastStepStats().runaways.empty()) << "step " << step;
-    double energy = 0.0;
-    for (BodyId b : bridge)
-      energy += kineticEnergy(world.body(b));
-    if (step >= 200) settled = std::max(settled, energy);
-    sag = std::max(sag, 5.0 - world.body(bridge[planks / 2]).position.z());
+  for (const int substeps : {1, 2, 10}) {
+    World world;
+    world.setSettings(SolverSettings::subStepped(substeps));
+    world.setGravity(Vec3(0, 0, -9.8));
+    const int planks = 16;
+    const std::vector<BodyId> bridge = motorHeldPlanks(world, planks, -planks / 2.0, true);
+    double settled = 0.0, sag = 0.0;
+    for (int step = 0; step < 400; ++step) {
+      world.step(0.002);
+      ASSERT_TRUE(world.lastStepStats().runaways.empty())
+          << substeps << " sub-steps, step " << step;
+      double energy = 0.0;
+      for (BodyId b : bridge)
+        energy += kineticEnergy(world.body(b));
+      if (step >= 200) settled = std::max(settled, energy);
+      sag = std::max(sag, 5.0 - world.body(bridge[planks / 2]).position.z());
+    }
+    std::printf(
+        "motor-held bridge, %d sub-steps: kinetic energy after 0.4 s at most %.3g J, sag %.3g mm\n",
+        substeps, settled, 1e3 * sag);
+    EXPECT_LT(settled, 1e-6) << substeps << " sub-steps";
+    EXPECT_LT(sag, 1.5e-3) << substeps << " sub-steps";
   }
-  std::printf("motor-held bridge: kinetic energy after 0.4 s at most %.3g J, sag %.3g mm\n",
-              settled, 1e3 * sag);
-  EXPECT_LT(settled, 1e-6);
-  EXPECT_LT(sag, 1e-3);
 }
 
 // The runaway guard: per-joint blocks diverge on the star; the island is
