@@ -708,6 +708,12 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
         substepsAt(s, in.h, islandLastTurn_[k], exactCount > 0 ? exactCount : s.substeps);
     most = std::max(most, classOfIsland_[k]);
   }
+  // Which islands take the exact joint islands' count (projectIsland
+  // gives them SHAKE's velocity), before the islands are renumbered.
+  islandAtExactJointCount_.resize(islandCount_);
+  for (int k = 0; k < islandCount_; ++k)
+    islandAtExactJointCount_[k] =
+        islandSolvedExactly_[k] == kExactJoints && s.exactJointIslandSubsteps > 0;
   // classOfIsland_ holds each island's count for now. Classes pay when
   // they save a good part of the step's block sub-steps: each class's
   // sub-steps go over every stage, and a pile of small islands, one of
@@ -745,6 +751,10 @@ void Solver::chooseClasses(const StepInput& in, const SolverSettings& s, IslandO
     renumbered_.resize(islandCount_);
     for (int k = 0; k < islandCount_; ++k)
       renumbered_[k] = fill_[classOfIsland_[k]]++;
+    exactJointCountScratch_.assign(islandAtExactJointCount_.begin(),
+                                   islandAtExactJointCount_.end());
+    for (int k = 0; k < islandCount_; ++k)
+      islandAtExactJointCount_[renumbered_[k]] = exactJointCountScratch_[k];
     for (std::int32_t& island : sourceIsland_)
       island = renumbered_[island];
     for (std::int32_t& island : islandOfRoot_) {
@@ -2051,7 +2061,12 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
   forEachBody([&](std::int32_t i) {
     fastest = std::max(fastest, in.bodies[i].angularVelocity.squaredNorm());
   });
-  const bool atPose = std::sqrt(fastest) * sincePrepared > kStaleProjectionTurn;
+  // An island at the exact joint islands' own count (one sub-step, say)
+  // is projected as SHAKE projects (shakeIsland below) while it turned
+  // less than kShakeTurn since its rows were prepared.
+  const bool shakeIsland = islandAtExactJointCount_[island] && !s.relaxCancelsDrift &&
+                           std::sqrt(fastest) * sincePrepared <= kShakeTurn;
+  const bool atPose = !shakeIsland && std::sqrt(fastest) * sincePrepared > kStaleProjectionTurn;
   // M^-1 J^T of the rows at the pose, in the Newton step's metric: only
   // once the island is to be projected (most steps of the preset find it
   // within its tolerance).
@@ -2138,7 +2153,9 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
         return;
       }
       if (pass == s.positionProjections || error == 0.0) return;
-      if (pass == 0 && error <= s.projectionTolerance) return;  // closed well enough
+      // Closed well enough (a SHAKE island closes any error: its velocity
+      // takes the moves).
+      if (pass == 0 && !shakeIsland && error <= s.projectionTolerance) return;
       if (pass == 0) {
         if (atPose) useMetricAtPose();
         forEachBody([&](std::int32_t i) {
@@ -2190,7 +2207,7 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
   // moves then went into the contacts too (the bridge under its crate
   // rose 1.4 kJ instead of 0.55 at the drop-in's ten sub-steps, median
   // of five starts).
-  if (moves > 0 && !islandTouched_[island]) payForProjection(in, island);
+  if (moves > 0 && !islandTouched_[island]) payForProjection(in, island, shakeIsland);
   return moves > 0;
 }
 
@@ -2214,7 +2231,7 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
 // leave its centre of mass where it was, so under gravity alone they do
 // no work. What the moves would give (W > 0) is not added: the projection
 // never speeds an island up.
-void Solver::payForProjection(const StepInput& in, int island) {
+void Solver::payForProjection(const StepInput& in, int island, bool shake) {
   const std::int32_t first = islandStart_[island], end = islandStart_[island + 1];
   auto forEachMovedBody = [&](auto&& f) {
     for (std::int32_t bi = first; bi < end; ++bi) {
@@ -2253,8 +2270,8 @@ void Solver::payForProjection(const StepInput& in, int island) {
     norm += b.mass * (dx / h).squaredNorm() + (dtheta / h).dot(spin);
   });
   unmark();
-  double alpha = 0.0;
-  if (work < 0.0 && along < 0.0 && norm > 0.0) {
+  double alpha = shake ? 1.0 : 0.0;
+  if (!shake && work < 0.0 && along < 0.0 && norm > 0.0) {
     const double least = -along * along / (2.0 * norm);  // at alpha = -along / norm
     alpha = least <= work ? (-along - std::sqrt(along * along + 2.0 * norm * work)) / norm
                           : -along / norm;
