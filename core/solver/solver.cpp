@@ -2063,9 +2063,10 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
   });
   // An island at the exact joint islands' own count (one sub-step, say)
   // is projected as SHAKE projects (shakeIsland below) while it turned
-  // less than kShakeTurn since its rows were prepared.
-  const bool shakeIsland = islandAtExactJointCount_[island] && !s.relaxCancelsDrift &&
-                           std::sqrt(fastest) * sincePrepared <= kShakeTurn;
+  // less than kShakeTurn since its rows were prepared, and while nothing
+  // touches it (only then do its velocities take the moves).
+  const bool shakeIsland = islandAtExactJointCount_[island] && !islandTouched_[island] &&
+                           !s.relaxCancelsDrift && std::sqrt(fastest) * sincePrepared <= kShakeTurn;
   const bool atPose = !shakeIsland && std::sqrt(fastest) * sincePrepared > kStaleProjectionTurn;
   // M^-1 J^T of the rows at the pose, in the Newton step's metric: only
   // once the island is to be projected (most steps of the preset find it
