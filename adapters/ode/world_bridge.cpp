@@ -73,6 +73,7 @@ SolverSettings BridgeSettings::fromQuickStepIterations(int iterations) {
   SolverSettings s =
       SolverSettings::subStepped(std::clamp(iterations / 2, 1, SolverSettings::kMaxSubsteps));
   s.exactContactIslandSubsteps = kExactContactIslandSubsteps;
+  s.exactJointIslandSubsteps = kExactJointIslandSubsteps;
   return s;
 }
 

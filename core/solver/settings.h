@@ -106,11 +106,12 @@ struct SolverSettings {
   // Sub-steps of an island of joints solved exactly in the last step: its
   // joints' equality rows were one island block, the step's end projected
   // them (positionProjections) and no contact touched it, nor does one
-  // now. Its joints then hold at any step; more sub-steps buy it energy
-  // (relax over a longer step takes more of a turning joint's: README
-  // "Fewer sub-steps for exact islands"), so by default it keeps the
-  // step's count. 0: the nominal `substeps`. Both need maxTurnPerSubstep
-  // (the islands' classes, Solver::chooseClasses).
+  // now. Its joints then hold at any step, and at this count it is
+  // projected as SHAKE projects, keeping a turning joint's energy
+  // (Solver::kShakeTurn; README "Fewer sub-steps for exact islands"). The
+  // drop-in's is 1 (BridgeSettings::fromQuickStepIterations). 0: the
+  // nominal `substeps`. Both need maxTurnPerSubstep (the islands'
+  // classes, Solver::chooseClasses).
   int exactJointIslandSubsteps = 0;
   // The same for an island of contacts only whose normals were one exact
   // group (contact_island.h: a stack, a plank under a load). Its load is

@@ -186,9 +186,9 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   EXPECT_EQ(dWorldGetBlockExactJointSubsteps(p.s.world), 0);
   EXPECT_EQ(dWorldGetBlockExactContactSubsteps(p.s.world), 0);
   {
-    Pendulum dropIn;  // following quickstep: contact islands at one sub-step
+    Pendulum dropIn;  // following quickstep: exact islands at one sub-step
     EXPECT_EQ(dWorldGetBlockExactContactSubsteps(dropIn.s.world), 1);
-    EXPECT_EQ(dWorldGetBlockExactJointSubsteps(dropIn.s.world), 0);
+    EXPECT_EQ(dWorldGetBlockExactJointSubsteps(dropIn.s.world), 1);
   }
   for (const char* said : {"dWorldSetBlockExactJointSubsteps(-1): expected 0 to 1000; call ignored",
                            "dWorldSetBlockExactContactSubsteps(1001): expected 0"})
