@@ -2070,7 +2070,7 @@ bool Solver::projectIsland(const StepInput& in, const SolverSettings& s, int isl
   // less than kShakeTurn since its rows were prepared, and while nothing
   // touches it (only then do its velocities take the moves).
   bool shakeIsland = islandAtExactJointCount_[island] && !islandTouched_[island] &&
-                     !s.relaxCancelsDrift && std::sqrt(fastest) * sincePrepared <= kShakeTurn;
+                     std::sqrt(fastest) * sincePrepared <= kShakeTurn;
   bool atPose = !shakeIsland && std::sqrt(fastest) * sincePrepared > kStaleProjectionTurn;
   // M^-1 J^T of the rows at the pose, in the Newton step's metric: only
   // once the island is to be projected (most steps of the preset find it
