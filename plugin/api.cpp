@@ -266,6 +266,14 @@ void readEnvironment() {
       v && parseInt("BLOCKSTEP_EXACT_CONTACT_SUBSTEPS", v, 0, n, SolverSettings::kMaxSubsteps)) {
     s.exactContactIslandSubsteps = n;
   }
+  if (const char* v = std::getenv("BLOCKSTEP_CALM_SUBSTEPS");
+      v && parseInt("BLOCKSTEP_CALM_SUBSTEPS", v, 0, n, SolverSettings::kMaxSubsteps)) {
+    s.calmTouchedIslandSubsteps = n;
+  }
+  if (const char* v = std::getenv("BLOCKSTEP_CALM_SPEED");
+      v && parseReal("BLOCKSTEP_CALM_SPEED", v, x)) {
+    s.calmApproachSpeed = x;
+  }
   if (const char* v = std::getenv("BLOCKSTEP_RUNAWAY_GAIN");
       v && parseReal("BLOCKSTEP_RUNAWAY_GAIN", v, x)) {
     s.runawayEnergyGain = x;
@@ -726,6 +734,24 @@ int dWorldGetBlockExactJointSubsteps(dWorldID w) {
     return heldOrSolvers(w, &ode::BridgeSettings::exactJointIslandSubsteps,
                          &SolverSettings::exactJointIslandSubsteps);
   });
+}
+void dWorldSetBlockCalmSubsteps(dWorldID w, int substeps) {
+  if (!inRange(__func__, substeps, 0, SolverSettings::kMaxSubsteps)) return;
+  guarded(__func__, [&] { LockedWorld(w).settings().calmTouchedIslandSubsteps = substeps; });
+}
+int dWorldGetBlockCalmSubsteps(dWorldID w) {
+  return guarded(__func__, 0, [&] {
+    return heldOrSolvers(w, &ode::BridgeSettings::calmTouchedIslandSubsteps,
+                         &SolverSettings::calmTouchedIslandSubsteps);
+  });
+}
+void dWorldSetBlockCalmSpeed(dWorldID w, dReal metresPerSecond) {
+  setWorldQuantity(__func__, w, metresPerSecond, &ode::BridgeSettings::calmApproachSpeed,
+                   "a speed >= 0 (m/s)");
+}
+dReal dWorldGetBlockCalmSpeed(dWorldID w) {
+  return worldQuantity(__func__, w, &ode::BridgeSettings::calmApproachSpeed,
+                       &SolverSettings::calmApproachSpeed);
 }
 void dWorldSetBlockExactContactSubsteps(dWorldID w, int substeps) {
   if (!inRange(__func__, substeps, 0, SolverSettings::kMaxSubsteps)) return;

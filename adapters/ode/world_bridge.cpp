@@ -146,6 +146,9 @@ SolverSettings WorldBridge::solverFor(OdeStepper stepper) const {
     s.exactJointIslandSubsteps = *settings_.exactJointIslandSubsteps;
   if (settings_.exactContactIslandSubsteps)
     s.exactContactIslandSubsteps = *settings_.exactContactIslandSubsteps;
+  if (settings_.calmTouchedIslandSubsteps)
+    s.calmTouchedIslandSubsteps = *settings_.calmTouchedIslandSubsteps;
+  if (settings_.calmApproachSpeed) s.calmApproachSpeed = *settings_.calmApproachSpeed;
   s.recordStageEnergy = settings_.recordStageEnergy;
   s.runawayEnergyGain = settings_.runawayEnergyGain;
   s.runawaySpeed = settings_.runawaySpeed;

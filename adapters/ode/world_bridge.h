@@ -110,6 +110,11 @@ struct BridgeSettings {
   // (SolverSettings::exactJointIslandSubsteps, exactContactIslandSubsteps;
   // 0: the nominal count; unset: the solver's own).
   std::optional<int> exactJointIslandSubsteps, exactContactIslandSubsteps;
+  // Sub-steps of a calm island and its largest closing speed, m/s
+  // (SolverSettings::calmTouchedIslandSubsteps, calmApproachSpeed; unset:
+  // the solver's own).
+  std::optional<int> calmTouchedIslandSubsteps;
+  std::optional<double> calmApproachSpeed;
   // Record each sub-step's energy after every stage
   // (SolverSettings::recordStageEnergy), whatever the solver.
   bool recordStageEnergy = false;

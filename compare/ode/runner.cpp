@@ -98,6 +98,8 @@ void configure(Scene& scene, const Stepper& s) {
   if (o.projectionTolerance) dWorldSetBlockProjectionTolerance(w, *o.projectionTolerance);
   if (o.threads) dWorldSetBlockThreads(w, *o.threads);
   if (o.exactJointSubsteps) dWorldSetBlockExactJointSubsteps(w, *o.exactJointSubsteps);
+  if (o.calmSubsteps) dWorldSetBlockCalmSubsteps(w, *o.calmSubsteps);
+  if (o.calmSpeed) dWorldSetBlockCalmSpeed(w, *o.calmSpeed);
   if (o.exactContactSubsteps) dWorldSetBlockExactContactSubsteps(w, *o.exactContactSubsteps);
   if (o.persistence) dWorldSetBlockContactPersistence(w, *o.persistence);
   if (o.tolerance) dWorldSetBlockTolerance(w, *o.tolerance);
@@ -335,6 +337,10 @@ void applySetting(const std::string& text, const std::string& item, Stepper& s) 
     o.refreshTurn = decimal(text, key, value, 0.0, 10.0);
   } else if (key == "exact_joint_substeps") {
     o.exactJointSubsteps = whole(text, key, value, 0, 1000);
+  } else if (key == "calm_substeps") {
+    o.calmSubsteps = whole(text, key, value, 0, 1000);
+  } else if (key == "calm_speed") {
+    o.calmSpeed = decimal(text, key, value, 0.0, 1000.0);
   } else if (key == "exact_contact_substeps") {
     o.exactContactSubsteps = whole(text, key, value, 0, 1000);
   } else if (key == "threads") {
@@ -413,6 +419,10 @@ std::vector<std::pair<std::string, std::string>> settingKeys() {
           {"exact_joint_substeps",
            "blockstep: sub-steps of an island of joints solved exactly (an island block, "
            "projected, touching nothing), 0: the step's count"},
+          {"calm_substeps",
+           "blockstep: sub-steps of a calm island (joints one island block, touched, no "
+           "contact closing faster than calm_speed), 0: the step's count"},
+          {"calm_speed", "blockstep: with calm_substeps, the largest closing speed, m/s"},
           {"exact_contact_substeps",
            "blockstep: sub-steps of an island of contacts solved as one exact group, 0: the "
            "step's count"},

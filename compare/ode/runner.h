@@ -58,7 +58,8 @@ struct Overrides {
   std::optional<double> projectionTolerance;  // islands closed within this are not projected
   std::optional<int> threads;                 // threads sweeping independent islands (0: per core)
   // Sub-steps of joint islands and of contact islands solved exactly (0: the step's count).
-  std::optional<int> exactJointSubsteps, exactContactSubsteps;
+  std::optional<int> exactJointSubsteps, exactContactSubsteps, calmSubsteps;
+  std::optional<double> calmSpeed;
   std::optional<double> persistence;  // contact persistence, m (0: off)
   std::optional<double> tolerance;    // stop sweeping below this residual, m/s (0: off)
   // Who collides: the scene's dSpaceCollide once a frame (unset), or

@@ -74,6 +74,11 @@ struct SolverSettings {
   // unseen and went 5.1-5.2 mm deep on two frame steps of ten; at a
   // quarter of it every run stayed at the depth the scene starts with.
   static constexpr double kSinkingDepth = 0.00025;
+  // A calm island's largest closing speed (calmApproachSpeed, m/s): above
+  // a resting contact's, which closes at most at g h within a step (0.16
+  // m/s at 60 Hz) and is stopped by its solve, below a landing's (the
+  // ragdoll lands at 3.4 m/s).
+  static constexpr double kCalmApproachSpeed = 0.3;
 
   // Velocity sweeps per (sub-)step: the upper bound when a tolerance or a
   // time budget is set too.
@@ -119,6 +124,17 @@ struct SolverSettings {
   // more (a contact's point turns with its body). The drop-in's default
   // is 1 (BridgeSettings::fromQuickStepIterations).
   int exactContactIslandSubsteps = 0;
+  // Sub-steps of a calm island: one of joints that a contact holds, whose
+  // joints were one projected island block in the last step (a ragdoll, a
+  // car, a hair strand on the head: not a cloth cut into chains) and that
+  // no contact strikes now: no point of its contacts closes faster than
+  // calmApproachSpeed (m/s) at the step's start. One that turns too fast
+  // for this count takes the nominal one. 0: the nominal `substeps`. It
+  // needs maxTurnPerSubstep (the islands' classes, Solver::chooseClasses).
+  // Off by default: it trades settled depth for time (README, "Fewer
+  // sub-steps for calm islands").
+  int calmTouchedIslandSubsteps = 0;
+  double calmApproachSpeed = kCalmApproachSpeed;
   // Colliding every sub-step (World), a part whose own solve spins a
   // touching body's surface past maxTurnPerSubstep within it is taken
   // again from its start, shorter (once): its contacts were linearized

@@ -86,6 +86,8 @@ class Solver {
   void buildIslands(const StepInput& in, const SolverSettings& s);
   template <class IslandOf>
   void chooseClasses(const StepInput& in, const SolverSettings& s, IslandOf islandOf);
+  template <class IslandOf>
+  void noteCalmIslands(const StepInput& in, const SolverSettings& s, IslandOf islandOf);
   static constexpr std::size_t kEveryClass = static_cast<std::size_t>(-1);
   void useClass(std::size_t c);
   using Clock = std::chrono::steady_clock;
@@ -271,12 +273,20 @@ class Solver {
   // The same for the whole turn (carried rows).
   std::vector<double> islandFullTurn_, bodyFullTurn_, islandLastFullTurn_;
   std::vector<LeverArms> leverArms_;
+  // The sine within which a round contact's curvature centre lies on the
+  // line its body turns about freely (noteLeverArms).
+  static constexpr double kRoundContactOnLine = 1e-3;
   std::vector<std::uint8_t> islandTouched_;  // per island: a contact holds it, this step
   // Per body: its island was solved exactly in the last step (an island
   // block, projected, touching nothing; or contacts only, one exact group);
   // per island (chooseClasses, before it numbers them by class), the least
   // of its bodies' (a joint island: unless a contact holds it now).
   std::vector<std::uint8_t> bodySolvedExactly_, islandSolvedExactly_;
+  // Per body: its island's joints were one projected island block in the
+  // last step, touched or not; per island (chooseClasses): all of its
+  // bodies' were, and no point of its contacts closes faster than
+  // calmApproachSpeed (calmTouchedIslandSubsteps).
+  std::vector<std::uint8_t> bodyInIslandBlock_, islandCalm_, calmScratch_;
   std::vector<std::uint64_t> exactSerial_;  // per body: Body::serial when its flag was set
   // Their values, ordered so that an island takes the least of its bodies'.
   static constexpr std::uint8_t kNotExact = 0, kExactJoints = 1, kExactContacts = 2;

@@ -1638,6 +1638,111 @@ TEST(Solver, AStackSolvedExactlyTakesOneSubstepAndStandsAsAtTen) {
   EXPECT_LT(one.penetration, 1e-3);
 }
 
+// A contact on a round surface holds at its curvature's centre, which a
+// turn about the line from the body's centre through it does not move:
+// a capsule rolling on its side at 30 rad/s (0.5 rad a frame, five times
+// maxTurnPerSubstep) asks for no sub-steps, a box spinning as fast on
+// the plane, its corners turning with it, still does.
+TEST(Solver, ACapsuleRollingOnItsSideAsksNoSubstepsABoxSpinningDoes) {
+  auto substepsOf = [](bool capsule) {
+    World world;
+    world.setSettings(SolverSettings::subStepped(1));
+    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    BodyDesc d;
+    const double radius = 0.05, length = 0.3;
+    const MassProperties m =
+        capsule ? capsuleMass(1.0, radius, length) : boxMass(1.0, Vec3(0.3, 0.1, 0.1));
+    d.mass = m.mass;
+    d.inertia = m.inertia;
+    // The capsule's axis (its z) along x; the box flat on the plane.
+    d.position = Vec3(0, 0, capsule ? radius : 0.05);
+    if (capsule) d.orientation = Quat::FromTwoVectors(Vec3::UnitZ(), Vec3::UnitX());
+    const BodyId body = world.createBody(d);
+    world.addShape(capsule ? Shape::capsule(body, radius, length)
+                           : Shape::box(body, Vec3(0.15, 0.05, 0.05)));
+    world.setAngularVelocity(body, capsule ? Vec3(30, 0, 0) : Vec3(0, 0, 30));
+    world.setLinearVelocity(body, capsule ? Vec3(0, -30 * radius, 0) : Vec3::Zero());
+    int most = 0;
+    for (int f = 0; f < 10; ++f) {
+      world.step(1.0 / 60.0);
+      if (f > 0) most = std::max(most, world.lastStepStats().substeps);
+    }
+    EXPECT_FALSE(world.contacts().empty());
+    return most;
+  };
+  const int rolling = substepsOf(true), spinning = substepsOf(false);
+  std::printf("capsule rolling at 30 rad/s: %d sub-steps; box spinning at 30 rad/s: %d\n", rolling,
+              spinning);
+  EXPECT_EQ(rolling, 1);
+  EXPECT_GT(spinning, 1);
+}
+
+// A ragdoll thrown onto the plane (compare/native/scenes.cpp) is an
+// island of joints that contacts hold once it lands. With
+// calmTouchedIslandSubsteps 1 it takes the nominal ten sub-steps while
+// its contacts close fast (the landing) and one once it lies still, where
+// its joints stay within SCENES.md's 2 mm, its contacts settle as deep
+// as at ten and it gains no energy; at the nominal count it takes ten
+// throughout.
+TEST(Solver, ACalmRagdollTakesOneSubstepAndHoldsItsJointsAndContacts) {
+  struct Run {
+    int landingSubsteps = 0, restingSubsteps = 0;
+    double worstGap = 0.0, restingDepth = 0.0, restingEnergyRise = 0.0;
+  };
+  auto run = [](int calmSubsteps) {
+    scenes::Scene scene;
+    scenes::makeScene("ragdoll", scene);
+    // SCENES.md's shapes (the native scene has none) and the plane.
+    World& w = scene.world;
+    w.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
+    w.addShape(Shape::box(0, Vec3(0.15, 0.10, 0.10)));
+    w.addShape(Shape::box(1, Vec3(0.17, 0.10, 0.20)));
+    w.addShape(Shape::capsule(2, 0.08, 0.14));
+    w.addShape(Shape::capsule(3, 0.06, 0.38));
+    w.addShape(Shape::capsule(4, 0.06, 0.38));
+    SolverSettings s = SolverSettings::subStepped(10);
+    s.calmTouchedIslandSubsteps = calmSubsteps;
+    scene.world.setSettings(s);
+    Run r;
+    bool landed = false;
+    double lowest = std::numeric_limits<double>::infinity();
+    const int frames = 300;
+    for (int f = 0; f < frames; ++f) {
+      scene.world.step(scene.frameStep);
+      const scenes::Quality q = scenes::measure(scene);
+      const int substeps = scene.world.lastStepStats().substeps;
+      r.worstGap = std::max(r.worstGap, q.maxSeparation);
+      if (!landed && !scene.world.contacts().empty()) {
+        landed = true;
+        r.landingSubsteps = substeps;
+      }
+      if (f >= frames - 60) {
+        r.restingSubsteps = std::max(r.restingSubsteps, substeps);
+        r.restingDepth = std::max(r.restingDepth, q.penetration);
+        const double e = test::mechanicalEnergy(scene.world, scene.world.bodyCount());
+        lowest = std::min(lowest, e);
+        r.restingEnergyRise = std::max(r.restingEnergyRise, e - lowest);
+      }
+    }
+    return r;
+  };
+  const Run calm = run(1), nominal = run(0);
+  std::printf(
+      "thrown ragdoll: calm at one sub-step lands at %d, rests at %d (worst joint %.3f mm, "
+      "resting depth %.3f mm, energy rise at rest %.3g J); nominal: %d, %d (%.3f mm, %.3f mm)\n",
+      calm.landingSubsteps, calm.restingSubsteps, 1e3 * calm.worstGap, 1e3 * calm.restingDepth,
+      calm.restingEnergyRise, nominal.landingSubsteps, nominal.restingSubsteps,
+      1e3 * nominal.worstGap, 1e3 * nominal.restingDepth);
+  EXPECT_EQ(calm.landingSubsteps, 10) << "a landing is no calm";
+  EXPECT_EQ(calm.restingSubsteps, 1);
+  EXPECT_EQ(nominal.restingSubsteps, 10);
+  EXPECT_LT(calm.worstGap, 2e-3);
+  // Its contacts settle as deep as at ten, within 1 mm (here blockstep's
+  // own collision leaves about 5 mm at either count).
+  EXPECT_LT(calm.restingDepth, nominal.restingDepth + 1e-3);
+  EXPECT_LT(calm.restingEnergyRise, 1e-3);
+}
+
 // A body made in a destroyed body's slot is new to the solver: the
 // stack's top box replaced between two steps by a box in the same slot
 // (the world reuses it) puts the stack back to ten sub-steps for a step,

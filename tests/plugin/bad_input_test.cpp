@@ -180,7 +180,22 @@ TEST(OdeBadInput, AbsurdSolverCountsAreRefusedAndTheWorldKeepsItsSettings) {
   const int exactContact = dWorldGetBlockExactContactSubsteps(p.s.world);
   dWorldSetBlockExactJointSubsteps(p.s.world, -1);
   dWorldSetBlockExactContactSubsteps(p.s.world, 1001);
+  const int calm = dWorldGetBlockCalmSubsteps(p.s.world);
+  const dReal calmSpeed = dWorldGetBlockCalmSpeed(p.s.world);
+  dWorldSetBlockCalmSubsteps(p.s.world, -2);
+  dWorldSetBlockCalmSpeed(p.s.world, -0.1);
+  dWorldSetBlockCalmSpeed(p.s.world, std::nan(""));
   const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(calm, 0);  // off unless the program asks
+  EXPECT_EQ(dWorldGetBlockCalmSubsteps(p.s.world), 0);
+  EXPECT_EQ(calmSpeed, 0.3);
+  EXPECT_EQ(dWorldGetBlockCalmSpeed(p.s.world), calmSpeed);
+  for (const char* said : {"dWorldSetBlockCalmSubsteps(-2): expected 0 to 1000; call ignored",
+                           "dWorldSetBlockCalmSpeed(-0.1): expected a speed >= 0",
+                           "dWorldSetBlockCalmSpeed(nan): expected a speed >= 0"})
+    EXPECT_NE(err.find(said), std::string::npos) << err;
+  dWorldSetBlockCalmSubsteps(p.s.world, 2);
+  EXPECT_EQ(dWorldGetBlockCalmSubsteps(p.s.world), 2);
   EXPECT_EQ(exactJoint, 0);    // off unless the program asks
   EXPECT_EQ(exactContact, 0);  // the sub-stepped preset's: every island its N
   EXPECT_EQ(dWorldGetBlockExactJointSubsteps(p.s.world), 0);
