@@ -242,15 +242,13 @@ void Solver::notePeakTurnRate(const StepInput& in, const SolverSettings& s) {
 // through the centre of mass). A body all of whose joints leave one such
 // line free (a capsule chain's link, a hair segment, a flywheel) counts
 // only its turn across it: light capsules, spun about their axes by
-// glancing contacts, asked for sub-steps their joints did not need. A
-// contact's point on a flat face, an edge or a vertex turns with the body
-// and counts the whole turn; on a round surface, only the turn that moves
-// its curvature's centre.
+// glancing contacts, asked for sub-steps their joints did not need. Any
+// contact (its point turns with the body) counts the whole turn.
 void Solver::noteLeverArms(const StepInput& in) {
   const std::size_t bodyCount = in.bodies.size();
   leverArms_.assign(bodyCount, LeverArms::None);
   leverAxis_.resize(bodyCount);
-  auto note = [&](BodyId i, const FreeTurn& free, double onLine = kOnLine) {
+  auto note = [&](BodyId i, const FreeTurn& free) {
     if (i == kWorldBody || leverArms_[i] == LeverArms::Any) return;
     switch (free.kind) {
       case FreeTurn::Kind::None:
@@ -262,7 +260,7 @@ void Solver::noteLeverArms(const StepInput& in) {
         if (leverArms_[i] == LeverArms::None) {
           leverArms_[i] = LeverArms::OnAxis;
           leverAxis_[i] = free.axis;
-        } else if (free.axis.cross(leverAxis_[i]).norm() > onLine) {
+        } else if (free.axis.cross(leverAxis_[i]).norm() > kOnLine) {
           leverArms_[i] = LeverArms::Any;
         }
         return;
@@ -270,21 +268,9 @@ void Solver::noteLeverArms(const StepInput& in) {
   };
   for (const std::int32_t source : active_) {
     if (source < 0) {
-      // A round side's row holds at its curvature's centre (contactSide),
-      // which a turn about the line from the body's centre through it
-      // leaves where it was: a capsule rolling on its side, a ball. The
-      // centres of a capsule's points lie on its axis to within the few
-      // microns their depths move them (a rolling capsule's two points,
-      // 5 um off its axis at 0.15 m, are on one line within
-      // kRoundContactOnLine): such a turn moves them by that much of it.
       const ContactManifold& m = in.contacts[contactIndex(source)];
-      for (int k = 0; k < m.pointCount; ++k) {
-        const ContactPoint& p = m.points[k];
-        note(m.bodyA, p.radiusA > 0.0 ? turnAboutAnchor(p.localA) : FreeTurn{},
-             kRoundContactOnLine);
-        note(m.bodyB, p.radiusB > 0.0 ? turnAboutAnchor(p.localB) : FreeTurn{},
-             kRoundContactOnLine);
-      }
+      note(m.bodyA, FreeTurn{});
+      note(m.bodyB, FreeTurn{});
       continue;
     }
     const Joint& joint = in.joints[source];

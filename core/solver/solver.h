@@ -273,9 +273,6 @@ class Solver {
   // The same for the whole turn (carried rows).
   std::vector<double> islandFullTurn_, bodyFullTurn_, islandLastFullTurn_;
   std::vector<LeverArms> leverArms_;
-  // The sine within which a round contact's curvature centre lies on the
-  // line its body turns about freely (noteLeverArms).
-  static constexpr double kRoundContactOnLine = 1e-3;
   std::vector<std::uint8_t> islandTouched_;  // per island: a contact holds it, this step
   // Per body: its island was solved exactly in the last step (an island
   // block, projected, touching nothing; or contacts only, one exact group);

@@ -1638,45 +1638,6 @@ TEST(Solver, AStackSolvedExactlyTakesOneSubstepAndStandsAsAtTen) {
   EXPECT_LT(one.penetration, 1e-3);
 }
 
-// A contact on a round surface holds at its curvature's centre, which a
-// turn about the line from the body's centre through it does not move:
-// a capsule rolling on its side at 30 rad/s (0.5 rad a frame, five times
-// maxTurnPerSubstep) asks for no sub-steps, a box spinning as fast on
-// the plane, its corners turning with it, still does.
-TEST(Solver, ACapsuleRollingOnItsSideAsksNoSubstepsABoxSpinningDoes) {
-  auto substepsOf = [](bool capsule) {
-    World world;
-    world.setSettings(SolverSettings::subStepped(1));
-    world.addShape(Shape::plane(Vec3::UnitZ(), 0.0));
-    BodyDesc d;
-    const double radius = 0.05, length = 0.3;
-    const MassProperties m =
-        capsule ? capsuleMass(1.0, radius, length) : boxMass(1.0, Vec3(0.3, 0.1, 0.1));
-    d.mass = m.mass;
-    d.inertia = m.inertia;
-    // The capsule's axis (its z) along x; the box flat on the plane.
-    d.position = Vec3(0, 0, capsule ? radius : 0.05);
-    if (capsule) d.orientation = Quat::FromTwoVectors(Vec3::UnitZ(), Vec3::UnitX());
-    const BodyId body = world.createBody(d);
-    world.addShape(capsule ? Shape::capsule(body, radius, length)
-                           : Shape::box(body, Vec3(0.15, 0.05, 0.05)));
-    world.setAngularVelocity(body, capsule ? Vec3(30, 0, 0) : Vec3(0, 0, 30));
-    world.setLinearVelocity(body, capsule ? Vec3(0, -30 * radius, 0) : Vec3::Zero());
-    int most = 0;
-    for (int f = 0; f < 10; ++f) {
-      world.step(1.0 / 60.0);
-      if (f > 0) most = std::max(most, world.lastStepStats().substeps);
-    }
-    EXPECT_FALSE(world.contacts().empty());
-    return most;
-  };
-  const int rolling = substepsOf(true), spinning = substepsOf(false);
-  std::printf("capsule rolling at 30 rad/s: %d sub-steps; box spinning at 30 rad/s: %d\n", rolling,
-              spinning);
-  EXPECT_EQ(rolling, 1);
-  EXPECT_GT(spinning, 1);
-}
-
 // A ragdoll thrown onto the plane (compare/native/scenes.cpp) is an
 // island of joints that contacts hold once it lands. With
 // calmTouchedIslandSubsteps 1 it takes the nominal ten sub-steps while

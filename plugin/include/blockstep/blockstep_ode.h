@@ -234,8 +234,9 @@ ODE_API int dWorldGetBlockExactContactSubsteps(dWorldID w);
  * dWorldSetBlockCalmSpeed (m/s, default 0.3) at the step's start. One
  * turning too fast for this count takes the step's own. 0 to 1000; 0 (the
  * default): the step's own count. At 1 the thrown ragdoll steps in about
- * a fifth of the time, its joints within 1 mm, but the ragdoll pile's
- * contacts settle deeper (README, "Fewer sub-steps for calm islands").
+ * a fifth of the time, its joints within 1 mm, but its resting contacts
+ * settle deeper and the ragdoll pile's tumbles go deeper (README, "Fewer
+ * sub-steps for calm islands").
  * BLOCKSTEP_CALM_SUBSTEPS=N, BLOCKSTEP_CALM_SPEED=V. */
 ODE_API void dWorldSetBlockCalmSubsteps(dWorldID w, int substeps);
 ODE_API int dWorldGetBlockCalmSubsteps(dWorldID w);
